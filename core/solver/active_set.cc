@@ -1,0 +1,250 @@
+#include "solver/active_set.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace godhand {
+
+namespace {
+constexpr double kTiny = 1e-300;
+template <class V>
+void growTo(V& v, size_t n) {
+  if (v.size() < n) v.resize(n);
+}
+}  // namespace
+
+void ActiveSetSolver::reserve(int bodies, int rows) {
+  if (rows > capacity_) {
+    capacity_ = rows;
+    L_.assign(static_cast<size_t>(capacity_) * static_cast<size_t>(capacity_), 0.0);
+    passive_.reserve(static_cast<size_t>(capacity_));
+  }
+  const size_t m = static_cast<size_t>(rows);
+  growTo(position_, m);
+  growTo(blocked_, m);
+  growTo(s_, m);
+  growTo(lambda_p_, m);
+  growTo(tmp_, m);
+  growTo(rhs_, m);
+  growTo(dz_, static_cast<size_t>(bodies));
+  growTo(kkt_scratch_, static_cast<size_t>(bodies));
+}
+
+bool ActiveSetSolver::append(const QpProblem& p, int k) {
+  const Row& row = p.row(k);
+  if (!(row.diag > 0.0) || !std::isfinite(row.diag)) return false;
+  const size_t cap = static_cast<size_t>(capacity_);
+  const int n = static_cast<int>(passive_.size());
+  double* L = L_.data();
+  // l = L⁻¹ a with a_i = A(P_i, k): column-oriented forward substitution.
+  for (int i = 0; i < n; ++i) tmp_[static_cast<size_t>(i)] = p.A(passive_[static_cast<size_t>(i)], k);
+  double ll = 0.0;
+  for (int j = 0; j < n; ++j) {
+    const double* col = L + static_cast<size_t>(j) * cap;
+    const double x = tmp_[static_cast<size_t>(j)] / col[j];
+    tmp_[static_cast<size_t>(j)] = x;
+    ll += x * x;
+    for (int i = j + 1; i < n; ++i) tmp_[static_cast<size_t>(i)] -= col[i] * x;
+  }
+  const double eps = settings_.regularization * row.diag;
+  double pivot2 = row.diag + eps - ll;
+  if (!(pivot2 > eps)) pivot2 = eps;  // row (numerically) dependent on P: regularisation pivot
+  if (!std::isfinite(pivot2) || !(pivot2 > 0.0)) return false;
+  for (int j = 0; j < n; ++j) L[static_cast<size_t>(j) * cap + static_cast<size_t>(n)] = tmp_[static_cast<size_t>(j)];
+  L[static_cast<size_t>(n) * cap + static_cast<size_t>(n)] = std::sqrt(pivot2);
+  passive_.push_back(k);
+  position_[static_cast<size_t>(k)] = n;
+  lambda_p_[static_cast<size_t>(n)] = 0.0;
+  return true;
+}
+
+void ActiveSetSolver::remove(int pos) {
+  const size_t cap = static_cast<size_t>(capacity_);
+  const int n = static_cast<int>(passive_.size());
+  double* L = L_.data();
+  auto at = [&](int i, int j) -> double& { return L[static_cast<size_t>(j) * cap + static_cast<size_t>(i)]; };
+  // x = the removed column below the diagonal; it feeds a rank-one update of the trailing block.
+  const int r = n - 1 - pos;
+  for (int i = 0; i < r; ++i) tmp_[static_cast<size_t>(i)] = at(pos + 1 + i, pos);
+  for (int j = 0; j < pos; ++j)
+    for (int i = pos + 1; i < n; ++i) at(i - 1, j) = at(i, j);
+  for (int j = pos + 1; j < n; ++j)
+    for (int i = j; i < n; ++i) at(i - 1, j - 1) = at(i, j);
+  // Rank-one update T Tᵀ + x xᵀ of the trailing r×r block at (pos, pos).
+  for (int k = 0; k < r; ++k) {
+    double& Tkk = at(pos + k, pos + k);
+    const double xk = tmp_[static_cast<size_t>(k)];
+    const double rr = std::hypot(Tkk, xk);
+    const double c = rr / Tkk, s = xk / Tkk;
+    Tkk = rr;
+    for (int i = k + 1; i < r; ++i) {
+      double& Tik = at(pos + i, pos + k);
+      Tik = (Tik + s * tmp_[static_cast<size_t>(i)]) / c;
+      tmp_[static_cast<size_t>(i)] = c * tmp_[static_cast<size_t>(i)] - s * Tik;
+    }
+  }
+  position_[static_cast<size_t>(passive_[static_cast<size_t>(pos)])] = -1;
+  for (int i = pos + 1; i < n; ++i) {
+    passive_[static_cast<size_t>(i - 1)] = passive_[static_cast<size_t>(i)];
+    lambda_p_[static_cast<size_t>(i - 1)] = lambda_p_[static_cast<size_t>(i)];
+    position_[static_cast<size_t>(passive_[static_cast<size_t>(i - 1)])] = i - 1;
+  }
+  passive_.pop_back();
+}
+
+void ActiveSetSolver::accumulate(const QpProblem& p, const double* x, std::vector<Vec6>& out) const {
+  for (int b = 0; b < p.numBodies(); ++b) out[static_cast<size_t>(b)].setZero();
+  for (size_t i = 0; i < passive_.size(); ++i) {
+    const Row& row = p.row(passive_[i]);
+    out[static_cast<size_t>(row.body0)] += x[i] * row.W0;
+    if (row.body1 >= 0) out[static_cast<size_t>(row.body1)] += x[i] * row.W1;
+  }
+}
+
+void ActiveSetSolver::solvePassive(const QpProblem& p) {
+  const size_t cap = static_cast<size_t>(capacity_);
+  const int n = static_cast<int>(passive_.size());
+  const double* L = L_.data();
+  auto cholSolve = [&](double* x) {  // x ← (L Lᵀ)⁻¹ x
+    for (int j = 0; j < n; ++j) {
+      const double* col = L + static_cast<size_t>(j) * cap;
+      x[j] /= col[j];
+      for (int i = j + 1; i < n; ++i) x[i] -= col[i] * x[j];
+    }
+    for (int j = n - 1; j >= 0; --j) {
+      const double* col = L + static_cast<size_t>(j) * cap;
+      double acc = x[j];
+      for (int i = j + 1; i < n; ++i) acc -= col[i] * x[i];
+      x[j] = acc / col[j];
+    }
+  };
+  for (int i = 0; i < n; ++i) {
+    rhs_[static_cast<size_t>(i)] = p.row(passive_[static_cast<size_t>(i)]).b;
+    s_[static_cast<size_t>(i)] = rhs_[static_cast<size_t>(i)];
+  }
+  cholSolve(s_.data());
+  for (int step = 0; step < settings_.refinement_steps; ++step) {
+    // r = b_P − A_PP s, with A_PP s = J_P (M⁻¹ J_Pᵀ s).
+    accumulate(p, s_.data(), dz_);
+    for (int i = 0; i < n; ++i) tmp_[static_cast<size_t>(i)] = rhs_[static_cast<size_t>(i)] - p.rowDot(passive_[static_cast<size_t>(i)], dz_.data());
+    cholSolve(tmp_.data());
+    for (int i = 0; i < n; ++i) s_[static_cast<size_t>(i)] += tmp_[static_cast<size_t>(i)];
+  }
+}
+
+SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const unsigned char* warm_passive) {
+  const int m = p.numRows(), nb = p.numBodies();
+  reserve(nb, m);
+  sol.resize(nb, m);
+  SolveStats stats;
+  passive_.clear();
+  std::fill(position_.begin(), position_.begin() + m, -1);
+  std::fill(blocked_.begin(), blocked_.begin() + m, static_cast<unsigned char>(0));
+  const int max_iter = settings_.max_iterations > 0 ? settings_.max_iterations : 3 * m + 50;
+  auto isIneq = [&](int k) { return p.row(k).type == RowType::Inequality; };
+
+  // P starts with every equality row (multipliers free), then last step's active rows.
+  for (int k = 0; k < m; ++k)
+    if (!isIneq(k)) append(p, k);
+  if (warm_passive)
+    for (int k = 0; k < m; ++k)
+      if (isIneq(k) && warm_passive[k]) append(p, k);
+  solvePassive(p);
+  // A warm set may be infeasible: drop its most negative multiplier until λ_I > 0.
+  for (;;) {
+    int worst = -1;
+    for (size_t i = 0; i < passive_.size(); ++i)
+      if (isIneq(passive_[i]) && s_[i] <= 0.0 && (worst < 0 || s_[i] < s_[static_cast<size_t>(worst)]))
+        worst = static_cast<int>(i);
+    if (worst < 0) break;
+    remove(worst);
+    solvePassive(p);
+  }
+  for (size_t i = 0; i < passive_.size(); ++i) lambda_p_[i] = s_[i];
+
+  bool converged = false, stalled = false;
+  while (stats.iterations < max_iter) {
+    // z = z_u + M⁻¹ J_Pᵀ λ_P and the most violated inequality outside P.
+    accumulate(p, lambda_p_.data(), dz_);
+    for (int b = 0; b < nb; ++b) sol.z[static_cast<size_t>(b)] = p.unconstrained(b) + dz_[static_cast<size_t>(b)];
+    int enter = -1;
+    double best = 0.0;
+    bool blocked_violated = false;
+    for (int k = 0; k < m; ++k) {
+      if (position_[static_cast<size_t>(k)] >= 0 || !isIneq(k)) continue;
+      const Row& row = p.row(k);
+      const double jz = p.rowDot(k, sol.z.data());
+      const double w = jz - row.c;
+      const double scale = std::max({std::abs(row.c), std::abs(row.c - row.b), std::abs(jz), kTiny});
+      if (!(w < -settings_.tolerance * scale)) continue;
+      if (blocked_[static_cast<size_t>(k)]) { blocked_violated = true; continue; }
+      const double score = w / std::sqrt(std::max(row.diag, kTiny));
+      if (enter < 0 || score < best) { enter = k; best = score; }
+    }
+    if (enter < 0) {
+      converged = !blocked_violated;
+      stalled = blocked_violated;
+      break;
+    }
+    ++stats.iterations;
+    if (!append(p, enter)) {
+      blocked_[static_cast<size_t>(enter)] = 1;
+      continue;
+    }
+    // Lawson–Hanson inner loop: move towards the new passive solution, dropping rows whose
+    // multiplier reaches zero, until every passive inequality multiplier is positive.
+    for (int inner = 0; inner <= m; ++inner) {
+      solvePassive(p);
+      const int n = static_cast<int>(passive_.size());
+      double alpha = 1.0;
+      int hit = -1;
+      for (int i = 0; i < n; ++i) {
+        if (!isIneq(passive_[static_cast<size_t>(i)]) || s_[static_cast<size_t>(i)] > 0.0) continue;
+        const double li = lambda_p_[static_cast<size_t>(i)];
+        const double a = li / (li - s_[static_cast<size_t>(i)]);
+        if (hit < 0 || a < alpha) { alpha = a; hit = i; }
+      }
+      if (hit < 0) {
+        for (int i = 0; i < n; ++i) lambda_p_[static_cast<size_t>(i)] = s_[static_cast<size_t>(i)];
+        break;
+      }
+      double lmax = kTiny;
+      for (int i = 0; i < n; ++i) {
+        double& li = lambda_p_[static_cast<size_t>(i)];
+        li += alpha * (s_[static_cast<size_t>(i)] - li);
+        lmax = std::max(lmax, std::abs(li));
+      }
+      for (int i = n - 1; i >= 0; --i) {
+        if (!isIneq(passive_[static_cast<size_t>(i)])) continue;
+        if (i == hit || lambda_p_[static_cast<size_t>(i)] <= 1e-15 * lmax) remove(i);
+      }
+    }
+    if (position_[static_cast<size_t>(enter)] < 0) {
+      blocked_[static_cast<size_t>(enter)] = 1;  // could not enter: avoid cycling on it
+    } else {
+      std::fill(blocked_.begin(), blocked_.begin() + m, static_cast<unsigned char>(0));
+    }
+  }
+
+  for (int k = 0; k < m; ++k) sol.lambda[static_cast<size_t>(k)] = 0.0;
+  int active = 0;
+  for (size_t i = 0; i < passive_.size(); ++i) {
+    sol.lambda[static_cast<size_t>(passive_[i])] = lambda_p_[i];
+    if (lambda_p_[i] != 0.0) ++active;
+  }
+  accumulate(p, lambda_p_.data(), dz_);
+  bool finite = true;
+  for (int b = 0; b < nb; ++b) {
+    sol.z[static_cast<size_t>(b)] = p.unconstrained(b) + dz_[static_cast<size_t>(b)];
+    finite = finite && sol.z[static_cast<size_t>(b)].allFinite();
+  }
+  stats.active_set_size = active;
+  stats.kkt_residual = kktResidual(p, sol, kkt_scratch_).max();
+  if (!finite || !std::isfinite(stats.kkt_residual)) stats.status = SolveStatus::NumericalFailure;
+  else if (converged) stats.status = SolveStatus::Converged;
+  else if (stalled) stats.status = SolveStatus::Stalled;
+  else stats.status = SolveStatus::IterationLimit;
+  return stats;
+}
+
+}  // namespace godhand

@@ -1,0 +1,62 @@
+// Exact solver of the Gauss least-constraint QP (METHOD.md §3): a primal-dual active-set
+// method on the dual, the Lawson–Hanson / Bro–de Jong NNLS scheme in normal-equation form
+// (paper ref. [9]), with the equality multipliers kept free and always passive.
+//
+//   passive set P ⊇ E;   A_PP λ_P = b_P  (λ_k = 0 for k ∉ P)
+//   add   argmin_k w_k/√A_kk over inequality rows with w_k = (Aλ − b)_k < −tol   (most violated)
+//   drop  inequality rows of P whose λ would turn negative (step to the boundary, L-H inner loop)
+//
+// A_PP is held as a Cholesky factor L Lᵀ = A_PP + diag(ε A_kk), updated in O(|P|²) when a row
+// enters (append) or leaves (row deletion + rank-one update), never refactored from scratch
+// within a solve. The small relative regularisation ε keeps redundant rows (duplicated or
+// coplanar contacts) factorisable; one step of iterative refinement against the unregularised A
+// recovers full accuracy where A_PP is regular. The paper's J k = c step (Eq. 7) is not used:
+// only A and b = c − J z_u are needed.
+//
+// No allocation once the buffers have grown to the largest problem seen (reserve()).
+#pragma once
+
+#include <vector>
+
+#include "solver/qp.h"
+
+namespace godhand {
+
+struct ActiveSetSettings {
+  int max_iterations = 0;        ///< active-set changes; 0 = automatic (3 m + 50)
+  double regularization = 1e-13; ///< ε, relative to each row's A_kk
+  double tolerance = 1e-11;      ///< relative slack tolerance for "violated"
+  int refinement_steps = 1;      ///< iterative refinement per solve of A_PP
+};
+
+class ActiveSetSolver {
+ public:
+  explicit ActiveSetSolver(ActiveSetSettings settings = {}) : settings_(settings) {}
+
+  /// Grows every buffer for problems with up to `bodies` bodies and `rows` rows.
+  void reserve(int bodies, int rows);
+
+  /// Solves the problem. `warm_passive`, if given, has one flag per row: inequality rows that were
+  /// active last step, tried first (dropped if they turn out infeasible).
+  SolveStats solve(const QpProblem& problem, QpSolution& solution, const unsigned char* warm_passive = nullptr);
+
+  const ActiveSetSettings& settings() const { return settings_; }
+
+ private:
+  bool append(const QpProblem& p, int k);   // Cholesky append; false if numerically impossible
+  void remove(int position);                // delete P[position] from the factor
+  void solvePassive(const QpProblem& p);    // s_P = A_PP⁻¹ b_P (+ refinement)
+  void accumulate(const QpProblem& p, const double* x, std::vector<Vec6>& out) const;  // M⁻¹ Jᵀ x over P
+
+  ActiveSetSettings settings_;
+  int capacity_ = 0;
+  std::vector<double> L_;                  // column-major, capacity_ × capacity_
+  std::vector<int> passive_;               // row indices in factor order
+  std::vector<int> position_;              // row -> position in passive_ or -1
+  std::vector<unsigned char> blocked_;     // rows that could not enter since the last change
+  std::vector<double> s_, lambda_p_, tmp_, rhs_;
+  std::vector<Vec6> dz_;
+  std::vector<Vec6> kkt_scratch_;
+};
+
+}  // namespace godhand

@@ -1,0 +1,157 @@
+#include "solver/qp.h"
+
+#include <Eigen/Cholesky>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace godhand {
+
+void QpProblem::reset(int num_bodies) {
+  num_bodies_ = num_bodies;
+  M_.resize(static_cast<size_t>(num_bodies));
+  Minv_.resize(static_cast<size_t>(num_bodies));
+  zu_.resize(static_cast<size_t>(num_bodies));
+  for (auto& z : zu_) z.setZero();
+  rows_.clear();
+}
+
+void QpProblem::setMass(int body, const Mat6& M) {
+  M_[static_cast<size_t>(body)] = M;
+  Eigen::LLT<Mat6> llt(M);
+  Minv_[static_cast<size_t>(body)] = llt.solve(Mat6::Identity());
+}
+
+void QpProblem::setRigidMass(int body, double mass, const Mat3& R, const Vec3& I) {
+  Mat6& M = M_[static_cast<size_t>(body)];
+  Mat6& Mi = Minv_[static_cast<size_t>(body)];
+  M.setZero();
+  Mi.setZero();
+  M.topLeftCorner<3, 3>().diagonal().setConstant(mass);
+  Mi.topLeftCorner<3, 3>().diagonal().setConstant(1.0 / mass);
+  M.bottomRightCorner<3, 3>() = R * I.asDiagonal() * R.transpose();
+  Mi.bottomRightCorner<3, 3>() = R * I.cwiseInverse().asDiagonal() * R.transpose();
+}
+
+Row& QpProblem::addRow(RowType type, int body0, const Vec6& J0, int body1, const Vec6& J1, double c,
+                       std::uint64_t key) {
+  rows_.emplace_back();
+  Row& r = rows_.back();
+  r.type = type;
+  r.body0 = body0;
+  r.J0 = J0;
+  r.body1 = body1;
+  if (body1 >= 0) r.J1 = J1;
+  r.c = c;
+  r.key = key;
+  return r;
+}
+
+void QpProblem::finalize() {
+  for (Row& r : rows_) {
+    r.W0 = Minv_[static_cast<size_t>(r.body0)] * r.J0;
+    double jzu = r.J0.dot(zu_[static_cast<size_t>(r.body0)]);
+    r.diag = r.J0.dot(r.W0);
+    if (r.body1 >= 0) {
+      r.W1 = Minv_[static_cast<size_t>(r.body1)] * r.J1;
+      jzu += r.J1.dot(zu_[static_cast<size_t>(r.body1)]);
+      r.diag += r.J1.dot(r.W1);
+    } else {
+      r.W1.setZero();
+    }
+    r.b = r.c - jzu;
+  }
+}
+
+double QpProblem::A(int i, int k) const {
+  const Row& a = rows_[static_cast<size_t>(i)];
+  const Row& b = rows_[static_cast<size_t>(k)];
+  double s = 0.0;
+  if (a.body0 == b.body0) s += a.J0.dot(b.W0);
+  if (b.body1 >= 0 && a.body0 == b.body1) s += a.J0.dot(b.W1);
+  if (a.body1 >= 0) {
+    if (a.body1 == b.body0) s += a.J1.dot(b.W0);
+    if (b.body1 >= 0 && a.body1 == b.body1) s += a.J1.dot(b.W1);
+  }
+  return s;
+}
+
+double QpProblem::rowDot(int k, const Vec6* z) const {
+  const Row& r = rows_[static_cast<size_t>(k)];
+  double s = r.J0.dot(z[r.body0]);
+  if (r.body1 >= 0) s += r.J1.dot(z[r.body1]);
+  return s;
+}
+
+const char* toString(SolveStatus s) {
+  switch (s) {
+    case SolveStatus::Converged: return "converged";
+    case SolveStatus::IterationLimit: return "iteration-limit";
+    case SolveStatus::SweepLimit: return "sweep-limit";
+    case SolveStatus::Stalled: return "stalled";
+    case SolveStatus::NumericalFailure: return "numerical-failure";
+  }
+  return "?";
+}
+
+double KktResidual::max() const { return std::max({stationarity, primal, dual, complementarity}); }
+
+KktResidual kktResidual(const QpProblem& p, const QpSolution& s) {
+  std::vector<Vec6> scratch;
+  return kktResidual(p, s, scratch);
+}
+
+KktResidual kktResidual(const QpProblem& p, const QpSolution& s, std::vector<Vec6>& jtl) {
+  constexpr double kTiny = 1e-300;
+  KktResidual r;
+  const int n = p.numBodies(), m = p.numRows();
+  double lam_max = 0.0;
+  jtl.resize(static_cast<size_t>(n));
+  for (auto& v : jtl) v.setZero();
+  for (int k = 0; k < m; ++k) {
+    const Row& row = p.row(k);
+    const double l = s.lambda[static_cast<size_t>(k)];
+    lam_max = std::max(lam_max, std::abs(l));
+    jtl[static_cast<size_t>(row.body0)] += l * row.J0;
+    if (row.body1 >= 0) jtl[static_cast<size_t>(row.body1)] += l * row.J1;
+  }
+  // Stationarity, body by body: M_b (z_b − z_u,b) − Σ_k J_k,bᵀ λ_k.
+  double stat = 0.0, scale = kTiny;
+  for (int b = 0; b < n; ++b) {
+    const Vec6& jb = jtl[static_cast<size_t>(b)];
+    const Vec6 mz = p.mass(b) * (s.z[static_cast<size_t>(b)] - p.unconstrained(b));
+    stat = std::max(stat, (mz - jb).cwiseAbs().maxCoeff());
+    scale = std::max({scale, mz.cwiseAbs().maxCoeff(), jb.cwiseAbs().maxCoeff(),
+                      (p.mass(b) * p.unconstrained(b)).cwiseAbs().maxCoeff()});
+  }
+  r.stationarity = stat / scale;
+  for (int k = 0; k < m; ++k) {
+    const Row& row = p.row(k);
+    const Vec6& z0 = s.z[static_cast<size_t>(row.body0)];
+    double jz = row.J0.dot(z0);
+    double sk = row.J0.cwiseAbs().dot(z0.cwiseAbs());
+    double su = row.J0.cwiseAbs().dot(p.unconstrained(row.body0).cwiseAbs());
+    if (row.body1 >= 0) {
+      const Vec6& z1 = s.z[static_cast<size_t>(row.body1)];
+      jz += row.J1.dot(z1);
+      sk += row.J1.cwiseAbs().dot(z1.cwiseAbs());
+      su += row.J1.cwiseAbs().dot(p.unconstrained(row.body1).cwiseAbs());
+    }
+    const double scale_k = std::max({std::abs(row.c), sk, su, kTiny});
+    const double slack = jz - row.c;
+    const double l = s.lambda[static_cast<size_t>(k)];
+    if (row.type == RowType::Equality) {
+      r.primal = std::max(r.primal, std::abs(slack) / scale_k);
+    } else {
+      r.primal = std::max(r.primal, std::max(0.0, -slack) / scale_k);
+      if (lam_max > 0.0) {
+        r.dual = std::max(r.dual, std::max(0.0, -l) / lam_max);
+        r.complementarity = std::max(r.complementarity, std::min(std::abs(l) / lam_max, std::abs(slack) / scale_k));
+      }
+    }
+  }
+  if (!std::isfinite(r.max())) r.stationarity = std::numeric_limits<double>::infinity();
+  return r;
+}
+
+}  // namespace godhand

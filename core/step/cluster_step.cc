@@ -1,0 +1,262 @@
+#include "step/cluster_step.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace godhand {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+double micros(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::micro>(b - a).count();
+}
+bool finitePositive(double x) { return std::isfinite(x) && x > 0.0; }
+void require(bool ok, const std::string& what) {
+  if (!ok) throw std::invalid_argument("step parameters: " + what);
+}
+}  // namespace
+
+void StepParams::validate() const {
+  require(finitePositive(dt) && dt <= 1.0, "dt must be in (0, 1] s, got " + std::to_string(dt));
+  require(finitePositive(k_s), "k_s must be finite and > 0 (1/s^2)");
+  require(finitePositive(rows.beta) && rows.beta <= 1.0, "rows.beta must be in (0, 1]");
+  require(finitePositive(rows.contact_beta) && rows.contact_beta <= 1.0, "rows.contact_beta must be in (0, 1]");
+  require(std::isfinite(rows.margin) && rows.margin >= 0.0, "rows.margin must be finite and >= 0 (m)");
+  require(std::isfinite(rows.limit_activation) && rows.limit_activation >= 0.0, "rows.limit_activation must be >= 0 (rad)");
+  require(exact.max_iterations >= 0, "exact.max_iterations must be >= 0");
+  require(std::isfinite(exact.regularization) && exact.regularization >= 0.0 && exact.regularization < 1e-3,
+          "exact.regularization must be in [0, 1e-3)");
+  require(finitePositive(exact.tolerance) && exact.tolerance < 1e-2, "exact.tolerance must be in (0, 1e-2)");
+  require(exact.refinement_steps >= 0 && exact.refinement_steps <= 10, "exact.refinement_steps must be in [0, 10]");
+  require(pgs.sweeps >= 1, "pgs.sweeps must be >= 1");
+  require(finitePositive(pgs.relaxation) && pgs.relaxation < 2.0, "pgs.relaxation must be in (0, 2)");
+  require(projection_iterations >= 0 && projection_iterations <= 100, "projection_iterations must be in [0, 100]");
+  require(finitePositive(projection_tolerance), "projection_tolerance must be > 0");
+  require(finitePositive(target_unit_tolerance) && target_unit_tolerance < 0.5, "target_unit_tolerance must be in (0, 0.5)");
+}
+
+ClusterStepper::ClusterStepper(const HandModel& model, StepParams params)
+    : model_(model), params_(params), exact_(params.exact), pgs_(params.pgs) {
+  params_.validate();
+  params_.rows.dt = params_.dt;
+  require(!model.bodies.empty(), "the model has no bodies");
+  X_W_ = model.restPoses(Pose{});
+  X_prev_ = X_W_;
+  last_target_ = X_W_;
+  has_last_target_.assign(model.bodies.size(), 0);
+  reserve(64);
+}
+
+void ClusterStepper::reserve(int contacts) {
+  const int n = static_cast<int>(model_.bodies.size());
+  const int rows = model_.equalityRows() + 4 * static_cast<int>(model_.joints.size()) + contacts;
+  qp_.reset(n);
+  proj_.reset(n);
+  qp_.reserveRows(rows);
+  proj_.reserveRows(rows);
+  sol_.resize(n, rows);
+  proj_sol_.resize(n, rows);
+  exact_.reserve(n, rows);
+  pgs_.reserve(n, rows);
+  if (contact_row_.size() < static_cast<size_t>(contacts)) {
+    contact_row_.resize(static_cast<size_t>(contacts));
+    lambda_contacts_.resize(static_cast<size_t>(contacts));
+  }
+  contact_row_.reserve(static_cast<size_t>(contacts));
+  lambda_contacts_.reserve(static_cast<size_t>(contacts));
+  warm_prev_.reserve(static_cast<size_t>(rows));
+  if (warm_lambda_.size() < static_cast<size_t>(rows)) {
+    warm_lambda_.resize(static_cast<size_t>(rows));
+    warm_flags_.resize(static_cast<size_t>(rows));
+  }
+}
+
+void ClusterStepper::reset(const std::vector<Pose>& X_W) {
+  if (X_W.size() != model_.bodies.size())
+    throw std::invalid_argument("reset: expected " + std::to_string(model_.bodies.size()) + " poses, got " +
+                                std::to_string(X_W.size()));
+  for (size_t i = 0; i < X_W.size(); ++i)
+    if (!isValidPose(X_W[i], 1e-6)) throw std::invalid_argument("reset: pose of body '" + model_.bodies[i].name + "' is not finite or not unit");
+  X_W_ = X_W;
+  for (auto& X : X_W_) X.q.normalize();
+  X_prev_ = X_W_;
+  std::fill(has_last_target_.begin(), has_last_target_.end(), 0);
+  warm_prev_.clear();
+}
+
+void ClusterStepper::assembleMasses(QpProblem& qp, const std::vector<Pose>& X) const {
+  for (size_t b = 0; b < model_.bodies.size(); ++b) {
+    const Body& body = model_.bodies[b];
+    qp.setRigidMass(static_cast<int>(b), body.mass, X[b].q.toRotationMatrix(), body.inertia);
+  }
+}
+
+const StepReport& ClusterStepper::step(const StepInput& in) {
+  const auto t0 = Clock::now();
+  report_ = StepReport{};
+  ++counters_.steps;
+  const int n = static_cast<int>(model_.bodies.size());
+  const double dt = params_.dt, dt2 = dt * dt;
+  const double k = std::min(params_.k_s, 1.0 / dt2);
+  const int nc = std::max(0, in.contacts ? in.num_contacts : 0);
+  if (static_cast<size_t>(nc) > contact_row_.capacity()) reserve(nc);
+
+  // Coupling (paper Eq. 2): a bad target is counted and replaced by the body's last valid one.
+  qp_.reset(n);
+  for (int b = 0; b < n; ++b) {
+    const bool driven = in.targets && (!in.has_target || in.has_target[b]);
+    if (driven) {
+      const Pose& T = in.targets[b];
+      if (isValidPose(T, params_.target_unit_tolerance)) {
+        last_target_[static_cast<size_t>(b)] = {T.p, T.q.normalized()};
+        has_last_target_[static_cast<size_t>(b)] = 1;
+      } else {
+        ++report_.rejected_targets;
+      }
+    }
+    Vec6& zu = qp_.unconstrained(b);
+    if (driven && has_last_target_[static_cast<size_t>(b)])
+      zu = k * poseDifference(last_target_[static_cast<size_t>(b)], X_W_[static_cast<size_t>(b)]);
+    else
+      zu.setZero();
+  }
+  const auto t1 = Clock::now();
+
+  // Assembly: masses at the current orientations, joint rows, limit rows, contact rows.
+  assembleMasses(qp_, X_W_);
+  addJointRows(qp_, model_, X_W_.data(), params_.rows);
+  report_.equality_rows = qp_.numRows();
+  report_.limit_rows = addLimitRows(qp_, model_, X_W_.data(), qp_.unconstrainedData(), params_.rows);
+  contact_row_.resize(static_cast<size_t>(nc));
+  lambda_contacts_.resize(static_cast<size_t>(nc));
+  for (int i = 0; i < nc; ++i) {
+    contact_row_[static_cast<size_t>(i)] = -1;
+    lambda_contacts_[static_cast<size_t>(i)] = 0.0;
+    Contact c = in.contacts[i];
+    const double nn = c.n_W.norm();
+    if (c.body < 0 || c.body >= n || !c.p_W.allFinite() || !c.n_W.allFinite() || !std::isfinite(c.distance) ||
+        !(nn > 0.5 && nn < 2.0)) {
+      ++report_.rejected_contacts;
+      continue;
+    }
+    c.n_W /= nn;
+    contact_row_[static_cast<size_t>(i)] = qp_.numRows();
+    addContactRow(qp_, c, X_W_[static_cast<size_t>(c.body)], params_.rows);
+    ++report_.contact_rows;
+  }
+  qp_.finalize();
+  report_.rows = qp_.numRows();
+  // Warm start from last step's multipliers, matched by row key.
+  for (int r = 0; r < report_.rows; ++r) {
+    const std::uint64_t key = qp_.row(r).key;
+    double l = 0.0;
+    if (key) {
+      auto it = std::lower_bound(warm_prev_.begin(), warm_prev_.end(), std::make_pair(key, -HUGE_VAL));
+      if (it != warm_prev_.end() && it->first == key) l = it->second;
+    }
+    warm_lambda_[static_cast<size_t>(r)] = l;
+    warm_flags_[static_cast<size_t>(r)] = qp_.row(r).type == RowType::Inequality && l > 0.0;
+  }
+  const auto t2 = Clock::now();
+
+  report_.solve = params_.solver == SolverKind::Exact ? exact_.solve(qp_, sol_, warm_flags_.data())
+                                                      : pgs_.solve(qp_, sol_, warm_lambda_.data());
+  const auto t3 = Clock::now();
+  if (report_.solve.status == SolveStatus::IterationLimit || report_.solve.status == SolveStatus::Stalled) {
+    report_.flags |= kFlagSolverInexact;
+    ++counters_.inexact_solves;
+  }
+  if (report_.rejected_targets) report_.flags |= kFlagRejectedTarget;
+  if (report_.rejected_contacts) report_.flags |= kFlagRejectedContact;
+  counters_.rejected_targets += static_cast<std::uint64_t>(report_.rejected_targets);
+  counters_.rejected_contacts += static_cast<std::uint64_t>(report_.rejected_contacts);
+
+  if (report_.solve.status == SolveStatus::NumericalFailure) {
+    report_.flags |= kFlagSolverFailed | kFlagStateKept;
+    ++counters_.solver_failures;
+    ++counters_.states_kept;
+    report_.joint_errors = jointErrors(model_, X_W_.data());
+    report_.times = {micros(t0, t1), micros(t1, t2), micros(t2, t3), 0.0, 0.0};
+    return report_;
+  }
+
+  // Integrate from rest: y = z Δt, X ← X ⊕ y Δt.
+  for (int b = 0; b < n; ++b) {
+    X_prev_[static_cast<size_t>(b)] = X_W_[static_cast<size_t>(b)];
+    X_W_[static_cast<size_t>(b)] = poseUpdate(X_W_[static_cast<size_t>(b)], sol_.z[static_cast<size_t>(b)], dt2);
+  }
+  const auto t4 = Clock::now();
+  report_.projection_iterations = project(in);
+  const auto t5 = Clock::now();
+
+  bool finite = true;
+  for (const Pose& X : X_W_) finite = finite && isValidPose(X, 1e-6);
+  if (!finite) {
+    X_W_ = X_prev_;
+    report_.flags |= kFlagStateKept;
+    ++counters_.states_kept;
+  }
+  report_.joint_errors = jointErrors(model_, X_W_.data());
+  if (params_.projection_iterations > 0 &&
+      std::max(report_.joint_errors.gap, report_.joint_errors.lock) > 1e3 * params_.projection_tolerance)
+    report_.flags |= kFlagProjectionIncomplete;
+  for (int i = 0; i < nc; ++i) {
+    const int r = contact_row_[static_cast<size_t>(i)];
+    if (r >= 0) lambda_contacts_[static_cast<size_t>(i)] = sol_.lambda[static_cast<size_t>(r)];
+  }
+  rememberWarmStart();
+  report_.times = {micros(t0, t1), micros(t1, t2), micros(t2, t3), micros(t3, t4), micros(t4, t5)};
+  return report_;
+}
+
+int ClusterStepper::project(const StepInput& in) {
+  // Position-level Newton iterations on the same rows: Δt = 1, β = 1, z_u = 0, so the solution
+  // is the M-smallest displacement that closes the joints, brings violated limits back to their
+  // bounds and moves no contact further in than it already is.
+  RowParams pp = params_.rows;
+  pp.dt = 1.0;
+  pp.beta = 1.0;
+  pp.contact_beta = 1.0;
+  const int n = static_cast<int>(model_.bodies.size());
+  int it = 0;
+  for (; it < params_.projection_iterations; ++it) {
+    const JointErrors e = jointErrors(model_, X_W_.data());
+    if (std::max({e.gap, e.lock, e.limit}) <= params_.projection_tolerance) break;
+    proj_.reset(n);
+    assembleMasses(proj_, X_W_);
+    addJointRows(proj_, model_, X_W_.data(), pp);
+    addLimitRows(proj_, model_, X_W_.data(), nullptr, pp);
+    for (size_t i = 0; i < contact_row_.size(); ++i) {
+      if (contact_row_[i] < 0) continue;
+      const Contact& c = in.contacts[i];
+      const size_t b = static_cast<size_t>(c.body);
+      const Vec3 n_W = c.n_W.normalized();
+      // The contact point moves rigidly with its body; the scene object does not move here.
+      const Vec3 p_now = X_W_[b] * (X_prev_[b].inverse() * c.p_W);
+      const double d_now = c.distance + n_W.dot(p_now - c.p_W);
+      Vec6 J;
+      J << n_W, (p_now - X_W_[b].p).cross(n_W);
+      proj_.addRow(RowType::Inequality, c.body, J, -1, Vec6::Zero(), std::min(0.0, pp.margin - d_now), 0);
+    }
+    proj_.finalize();
+    const SolveStats s = exact_.solve(proj_, proj_sol_);
+    if (s.status == SolveStatus::NumericalFailure) break;
+    for (int b = 0; b < n; ++b)
+      X_W_[static_cast<size_t>(b)] = poseUpdate(X_W_[static_cast<size_t>(b)], proj_sol_.z[static_cast<size_t>(b)], 1.0);
+  }
+  return it;
+}
+
+void ClusterStepper::rememberWarmStart() {
+  warm_prev_.clear();
+  for (int r = 0; r < qp_.numRows(); ++r) {
+    const std::uint64_t key = qp_.row(r).key;
+    if (key) warm_prev_.emplace_back(key, sol_.lambda[static_cast<size_t>(r)]);
+  }
+  std::sort(warm_prev_.begin(), warm_prev_.end());
+}
+
+}  // namespace godhand

@@ -1,0 +1,132 @@
+// One step of one cluster of God objects (METHOD.md §2, paper §4), taking the contact set as
+// input (contact generation and CCD against meshes live in the collision stage):
+//
+//   coupling   z_u,i = k (X_target,i ⊖ X_god,i)            paper Eq. 2, k = min(k_s, 1/Δt²)
+//   assembly   masses M_i = diag(m I, R I_B Rᵀ), rows J, c  (joints, active limits, contacts)
+//   solve      z = argmin ½‖z − z_u‖²_M s.t. J_E z = c_E, J_I z ≥ c_I   (exact or PGS)
+//   integrate  X_i ← X_i ⊕ z_i Δt²                         symplectic Euler from rest, §2 step 4
+//   project    post-stabilisation: Newton iterations of the same QP at position level
+//              (z_u = 0, Δt = 1, β = 1) so that joints close to round-off, limits hold and
+//              contacts are not pushed in by the correction. This removes the second-order
+//              drift that velocity-level rows leave behind (the paper's "slightly separated
+//              phalanxes").
+//
+// The clamp k ≤ 1/Δt² means a free God object reaches its target in one step and never
+// overshoots it (k Δt² > 1 would overshoot; > 2 diverge).
+//
+// Model, data, solver (STYLE habit 1): the HandModel is const, per-step results live in
+// StepReport, factorisations in the solvers. Nothing is allocated once warm (same or fewer rows
+// than seen before). Bad inputs inside the step are counted and flagged, never thrown.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "model/hand_model.h"
+#include "solver/active_set.h"
+#include "solver/pgs.h"
+#include "step/constraints.h"
+
+namespace godhand {
+
+enum class SolverKind { Exact, Pgs };
+
+struct StepParams {
+  double dt = 1e-3;                 ///< s
+  double k_s = 1e6;                 ///< coupling stiffness, 1/s² (clamped to 1/Δt²)
+  RowParams rows;                   ///< β, margin δ, … (rows.dt is overwritten by dt)
+  SolverKind solver = SolverKind::Exact;
+  ActiveSetSettings exact;
+  PgsSettings pgs;
+  int projection_iterations = 3;    ///< 0 disables post-stabilisation
+  double projection_tolerance = 1e-12;  ///< m / rad
+  double target_unit_tolerance = 1e-3;  ///< |‖q‖ − 1| above this rejects a target
+
+  /// Throws std::invalid_argument naming the first bad field.
+  void validate() const;
+};
+
+enum StepFlag : std::uint32_t {
+  kFlagRejectedTarget = 1u << 0,   ///< a target was NaN/Inf/non-unit: its last valid one was used
+  kFlagRejectedContact = 1u << 1,  ///< a contact was malformed and ignored
+  kFlagSolverFailed = 1u << 2,     ///< numerical failure: the previous state was kept
+  kFlagSolverInexact = 1u << 3,    ///< iteration limit / stalled: result used, KKT not met
+  kFlagStateKept = 1u << 4,        ///< the step produced non-finite poses: previous state kept
+  kFlagProjectionIncomplete = 1u << 5,  ///< joint error above tolerance after projection
+};
+
+struct StageTimes {
+  double coupling_us = 0, assembly_us = 0, solve_us = 0, integrate_us = 0, project_us = 0;
+  double total_us() const { return coupling_us + assembly_us + solve_us + integrate_us + project_us; }
+};
+
+struct StepReport {
+  SolveStats solve;
+  StageTimes times;
+  int rows = 0, equality_rows = 0, limit_rows = 0, contact_rows = 0;
+  int projection_iterations = 0;
+  JointErrors joint_errors;         ///< after the step
+  std::uint32_t flags = 0;
+  int rejected_targets = 0, rejected_contacts = 0;
+};
+
+/// Counters over the stepper's lifetime (printed by services on exit).
+struct StepCounters {
+  std::uint64_t steps = 0, rejected_targets = 0, rejected_contacts = 0, solver_failures = 0,
+                inexact_solves = 0, states_kept = 0;
+};
+
+struct StepInput {
+  const Pose* targets = nullptr;              ///< one per body
+  const unsigned char* has_target = nullptr;  ///< per body; nullptr = every body driven
+  const Contact* contacts = nullptr;
+  int num_contacts = 0;
+};
+
+class ClusterStepper {
+ public:
+  /// Throws std::invalid_argument on bad parameters. The model must outlive the stepper.
+  ClusterStepper(const HandModel& model, StepParams params);
+
+  /// Places the bodies; throws std::invalid_argument on a wrong count or invalid pose.
+  void reset(const std::vector<Pose>& X_W);
+  /// Grows buffers for up to `contacts` contacts so that the first steps allocate nothing.
+  void reserve(int contacts);
+
+  const StepReport& step(const StepInput& input);
+
+  const std::vector<Pose>& poses() const { return X_W_; }
+  const HandModel& model() const { return model_; }
+  const StepParams& params() const { return params_; }
+  const StepCounters& counters() const { return counters_; }
+  const StepReport& lastReport() const { return report_; }
+  /// Multiplier (N, along the contact normal on the God object) of contact i of the last step.
+  double contactLambda(int i) const { return lambda_contacts_[static_cast<size_t>(i)]; }
+  /// The last step's problem and solution (for tests and diagnostics).
+  const QpProblem& problem() const { return qp_; }
+  const QpSolution& solution() const { return sol_; }
+
+ private:
+  void assembleMasses(QpProblem& qp, const std::vector<Pose>& X) const;
+  int project(const StepInput& in);
+  void rememberWarmStart();
+
+  const HandModel& model_;
+  StepParams params_;
+  std::vector<Pose> X_W_, X_prev_, last_target_;
+  std::vector<unsigned char> has_last_target_;
+  QpProblem qp_, proj_;
+  QpSolution sol_, proj_sol_;
+  ActiveSetSolver exact_;
+  PgsSolver pgs_;
+  std::vector<int> contact_row_;       // contact i -> row index or -1
+  std::vector<double> lambda_contacts_;
+  // Warm start: keys and λ of the last step, sorted by key.
+  std::vector<std::pair<std::uint64_t, double>> warm_prev_;
+  std::vector<double> warm_lambda_;
+  std::vector<unsigned char> warm_flags_;
+  StepReport report_;
+  StepCounters counters_;
+};
+
+}  // namespace godhand
