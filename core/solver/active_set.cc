@@ -175,7 +175,7 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
       const Row& row = p.row(k);
       const double jz = p.rowDot(k, sol.z.data());
       const double w = jz - row.c;
-      const double scale = std::max({std::abs(row.c), std::abs(row.c - row.b), std::abs(jz), kTiny});
+      const double scale = std::max({std::abs(row.c), std::abs(row.c - row.b), p.rowAbsDot(k, sol.z.data()), kTiny});
       if (!(w < -settings_.tolerance * scale)) continue;
       if (blocked_[static_cast<size_t>(k)]) { blocked_violated = true; continue; }
       const double score = w / std::sqrt(std::max(row.diag, kTiny));

@@ -83,6 +83,13 @@ double QpProblem::rowDot(int k, const Vec6* z) const {
   return s;
 }
 
+double QpProblem::rowAbsDot(int k, const Vec6* z) const {
+  const Row& r = rows_[static_cast<size_t>(k)];
+  double s = r.J0.cwiseAbs().dot(z[r.body0].cwiseAbs());
+  if (r.body1 >= 0) s += r.J1.cwiseAbs().dot(z[r.body1].cwiseAbs());
+  return s;
+}
+
 const char* toString(SolveStatus s) {
   switch (s) {
     case SolveStatus::Converged: return "converged";

@@ -67,6 +67,8 @@ class QpProblem {
   double A(int i, int k) const;
   /// J_k z for per-body accelerations z.
   double rowDot(int k, const Vec6* z) const;
+  /// Σ |J_k| |z| (elementwise): the round-off scale of rowDot.
+  double rowAbsDot(int k, const Vec6* z) const;
 
  private:
   int num_bodies_ = 0;
