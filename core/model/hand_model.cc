@@ -268,6 +268,11 @@ HandModel HandModel::fromText(const std::string& text, const std::string& source
     if (j.child < 0) throw ModelError(where("child") + "unknown body '" + pj.child() + "'");
     if (j.parent == j.child) throw ModelError(where("child") + "a joint cannot tie a body to itself");
     if (parent_of[j.child] >= 0) throw ModelError(where("child") + "body '" + pj.child() + "' already has a parent joint (the model must be a tree)");
+    // The joints so far form a forest, so walking up from the parent ends; meeting the child
+    // means this joint would close a cycle.
+    for (int p = j.parent; p >= 0; p = parent_of[static_cast<size_t>(p)])
+      if (p == j.child)
+        throw ModelError(where("child") + "joint would close a cycle through body '" + pj.child() + "' (the model must be a tree)");
     parent_of[j.child] = j.parent;
     j.X_PJ = jointFrame(pj.anchor_parent(), pj.axis_parent(), pj.reference_parent(), where("anchor_parent"),
                         where("axis_parent"), where("reference_parent"));
@@ -307,14 +312,6 @@ HandModel HandModel::fromText(const std::string& text, const std::string& source
         throw ModelError(where("limits") + "the rest pose lies outside the limits of angle " + std::to_string(a + 1));
     }
     model.joints.push_back(j);
-  }
-  // No cycles: following parents from any body must end.
-  for (size_t b = 0; b < parent_of.size(); ++b) {
-    int p = static_cast<int>(b);
-    for (size_t steps = 0; p >= 0; ++steps) {
-      if (steps > parent_of.size()) throw ModelError(source + ":1: joints: the joints form a cycle through body '" + model.bodies[b].name + "'");
-      p = parent_of[p];
-    }
   }
   return model;
 }

@@ -1,1 +1,128 @@
-int main() { return 0; }
+// One 16-body hand step against the number of contact rows, exact vs PGS (issue: measured, not
+// asserted). The hand presses 5 mm into a table plane and slides in a circle while its fingers
+// curl; N contacts are spread over the 16 bodies (points along each body's underside, exact
+// signed distances to the plane), regenerated every step, as the collision stage will.
+//
+//   build/bin/godhand-bench-step --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+//
+// Counters: rows, solver iterations, active-set size, KKT residual of that step.
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "model/hand_model.h"
+#include "step/cluster_step.h"
+
+namespace {
+using namespace godhand;
+
+const HandModel& hand() {
+  static const HandModel model = HandModel::loadFile(GODHAND_MODELS_DIR "/hand16_right.pbtxt");
+  return model;
+}
+
+/// Lowest point of a body's shape along -z at parameter s ∈ [-1, 1] along its long axis.
+Vec3 underside(const Body& b, const Pose& X, double s, double t) {
+  switch (b.shape.type) {
+    case ShapeType::Capsule:
+      return X * Vec3(0, 0, s * b.shape.half_length) - Vec3(0, 0, b.shape.radius);
+    case ShapeType::Sphere:
+      return X.p - Vec3(0, 0, b.shape.radius);
+    case ShapeType::Box: {
+      const Vec3 h = b.shape.half_extents;
+      return X * Vec3(s * h.x(), t * h.y(), -h.z());
+    }
+  }
+  return X.p;
+}
+
+struct Scenario {
+  explicit Scenario(SolverKind kind, int contacts) : params(makeParams(kind)), stepper(hand(), params), n(contacts) {
+    const auto rest = hand().restPoses(Pose{});
+    double zmin = 1e9;  // put the hand's underside exactly on the plane z = 0
+    for (size_t b = 0; b < rest.size(); ++b) zmin = std::min(zmin, underside(hand().bodies[b], rest[b], 0, 0).z());
+    Pose X_WM;
+    X_WM.p = Vec3(0, 0, -zmin);
+    start = hand().restPoses(X_WM);
+    stepper.reset(start);
+    stepper.reserve(contacts);
+    targets = start;
+    contacts_buf.resize(static_cast<size_t>(contacts));
+  }
+  static StepParams makeParams(SolverKind kind) {
+    StepParams p;
+    p.solver = kind;
+    p.pgs.sweeps = 30;
+    return p;
+  }
+  void update(int frame) {
+    // Targets: rigid circle in xy, 5 mm into the table, fingers curling 0..60° about their axes.
+    const double a = 0.002 * frame;
+    Pose X_M;
+    X_M.p = Vec3(0.01 * std::cos(a), 0.01 * std::sin(a), -0.005);
+    for (size_t b = 0; b < targets.size(); ++b) targets[b] = X_M * start[b];
+    const auto& poses = stepper.poses();
+    for (int i = 0; i < n; ++i) {
+      const int b = i % 16, slot = i / 16, per = (n + 15 - b) / 16;
+      const double s = per > 1 ? -1.0 + 2.0 * slot / (per - 1) : 0.0;
+      const double t = std::sin(1.7 * slot);
+      const Body& body = hand().bodies[static_cast<size_t>(b)];
+      Contact& c = contacts_buf[static_cast<size_t>(i)];
+      c.body = b;
+      c.p_W = underside(body, poses[static_cast<size_t>(b)], s, t);
+      c.n_W = Vec3(0, 0, 1);
+      c.distance = c.p_W.z();
+      c.key = static_cast<std::uint64_t>(i) + 1;
+      c.object = 0;
+    }
+  }
+  StepParams params;
+  ClusterStepper stepper;
+  int n;
+  std::vector<Pose> start, targets;
+  std::vector<Contact> contacts_buf;
+};
+
+void BM_HandStep(benchmark::State& state, SolverKind kind) {
+  Scenario sc(kind, static_cast<int>(state.range(0)));
+  int frame = 0;
+  for (int i = 0; i < 50; ++i) {  // warm up into steady contact
+    sc.update(frame++);
+    StepInput in{sc.targets.data(), nullptr, sc.contacts_buf.data(), sc.n};
+    sc.stepper.step(in);
+  }
+  double iters = 0, active = 0, kkt = 0, rows = 0, solve_us = 0;
+  std::int64_t steps = 0;
+  for (auto _ : state) {
+    sc.update(frame++);
+    StepInput in{sc.targets.data(), nullptr, sc.contacts_buf.data(), sc.n};
+    const StepReport& r = sc.stepper.step(in);
+    benchmark::DoNotOptimize(r.solve.kkt_residual);
+    iters += r.solve.iterations;
+    active += r.solve.active_set_size;
+    kkt = std::max(kkt, r.solve.kkt_residual);
+    rows += r.rows;
+    solve_us += r.times.solve_us;
+    ++steps;
+  }
+  const double k = steps ? 1.0 / static_cast<double>(steps) : 0.0;
+  state.counters["rows"] = rows * k;
+  state.counters["solver_iters"] = iters * k;
+  state.counters["active"] = active * k;
+  state.counters["solve_us"] = solve_us * k;
+  state.counters["kkt_max"] = kkt;
+  state.counters["failures"] = static_cast<double>(sc.stepper.counters().solver_failures);
+}
+
+void contactCounts(benchmark::internal::Benchmark* b) {
+  for (int n : {0, 16, 64, 256, 1024}) b->Arg(n);
+  b->Unit(benchmark::kMicrosecond);
+}
+
+}  // namespace
+
+BENCHMARK_CAPTURE(BM_HandStep, exact, godhand::SolverKind::Exact)->Apply(contactCounts);
+BENCHMARK_CAPTURE(BM_HandStep, pgs, godhand::SolverKind::Pgs)->Apply(contactCounts);
+BENCHMARK_MAIN();
