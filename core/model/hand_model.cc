@@ -278,6 +278,7 @@ HandModel HandModel::fromText(const std::string& text, const std::string& source
                         where("axis_parent"), where("reference_parent"));
     j.X_CJ = jointFrame(pj.anchor_child(), pj.axis_child(), pj.reference_child(), where("anchor_child"),
                         where("axis_child"), where("reference_child"));
+    std::array<int, 2> limit_entry{-1, -1};  // index in pj.limits of each angle's limit
     for (int k = 0; k < pj.limits_size(); ++k) {
       const pb::Limit& l = pj.limits(k);
       const std::string wl = loc.at(pj, t, "limits", k, line, path + ".limits[" + std::to_string(k) + "]");
@@ -289,6 +290,7 @@ HandModel HandModel::fromText(const std::string& text, const std::string& source
       JointLimit& jl = j.limits[l.angle() - 1];
       if (jl.enabled) throw ModelError(wl + "angle " + std::to_string(l.angle()) + " is limited twice");
       jl = {true, l.lower(), l.upper()};
+      limit_entry[l.angle() - 1] = k;
     }
     // The rest pose must satisfy the joint: anchors coincide, locked directions agree, angles
     // within the limits.
@@ -309,7 +311,8 @@ HandModel HandModel::fromText(const std::string& text, const std::string& source
     for (int a = 0; a < 2; ++a) {
       const JointLimit& jl = j.limits[a];
       if (jl.enabled && (angles[a] < jl.lower - 1e-9 || angles[a] > jl.upper + 1e-9))
-        throw ModelError(where("limits") + "the rest pose lies outside the limits of angle " + std::to_string(a + 1));
+        throw ModelError(loc.at(pj, t, "limits", limit_entry[a], line, path + ".limits[" + std::to_string(limit_entry[a]) + "]") +
+                         "the rest pose lies outside the limits of angle " + std::to_string(a + 1));
     }
     model.joints.push_back(j);
   }

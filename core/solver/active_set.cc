@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace godhand {
 
 namespace {
 constexpr double kTiny = 1e-300;
+constexpr double kNoiseUlps = 4.0 * std::numeric_limits<double>::epsilon();  // round-off floor of a slack
 template <class V>
 void growTo(V& v, size_t n) {
   if (v.size() < n) v.resize(n);
@@ -27,6 +29,7 @@ void ActiveSetSolver::reserve(int bodies, int rows) {
   growTo(tmp_, m);
   growTo(rhs_, m);
   growTo(dz_, static_cast<size_t>(bodies));
+  growTo(absz_, static_cast<size_t>(bodies));
   growTo(kkt_scratch_, static_cast<size_t>(bodies));
 }
 
@@ -101,6 +104,16 @@ void ActiveSetSolver::accumulate(const QpProblem& p, const double* x, std::vecto
   }
 }
 
+void ActiveSetSolver::accumulateAbs(const QpProblem& p, std::vector<Vec6>& out) const {
+  for (int b = 0; b < p.numBodies(); ++b) out[static_cast<size_t>(b)] = p.unconstrained(b).cwiseAbs();
+  for (size_t i = 0; i < passive_.size(); ++i) {
+    const Row& row = p.row(passive_[i]);
+    const double l = std::abs(lambda_p_[i]);
+    out[static_cast<size_t>(row.body0)] += l * row.W0.cwiseAbs();
+    if (row.body1 >= 0) out[static_cast<size_t>(row.body1)] += l * row.W1.cwiseAbs();
+  }
+}
+
 void ActiveSetSolver::solvePassive(const QpProblem& p) {
   const size_t cap = static_cast<size_t>(capacity_);
   const int n = static_cast<int>(passive_.size());
@@ -167,6 +180,11 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
     // z = z_u + M⁻¹ J_Pᵀ λ_P and the most violated inequality outside P.
     accumulate(p, lambda_p_.data(), dz_);
     for (int b = 0; b < nb; ++b) sol.z[static_cast<size_t>(b)] = p.unconstrained(b) + dz_[static_cast<size_t>(b)];
+    // Round-off floor of J_k z: the terms of z = z_u + Σ λ_i M⁻¹J_iᵀ can cancel (large λ of nearly
+    // dependent rows), so a slack within a few ulps of |J_k| (|z_u| + Σ |λ_i| |M⁻¹J_iᵀ|) is noise,
+    // whatever its sign. Letting such rows enter P (they are dependent at a degenerate vertex)
+    // gives them huge λ, which raises the noise further and ends in a false or real stall.
+    accumulateAbs(p, absz_);
     int enter = -1;
     double best = 0.0;
     bool blocked_violated = false;
@@ -176,7 +194,8 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
       const double jz = p.rowDot(k, sol.z.data());
       const double w = jz - row.c;
       const double scale = std::max({std::abs(row.c), std::abs(row.c - row.b), p.rowAbsDot(k, sol.z.data()), kTiny});
-      if (!(w < -settings_.tolerance * scale)) continue;
+      const double noise = kNoiseUlps * p.rowAbsDot(k, absz_.data());
+      if (!(w < -std::max(settings_.tolerance * scale, noise))) continue;
       if (blocked_[static_cast<size_t>(k)]) { blocked_violated = true; continue; }
       const double score = w / std::sqrt(std::max(row.diag, kTiny));
       if (enter < 0 || score < best) { enter = k; best = score; }

@@ -47,6 +47,7 @@ class ActiveSetSolver {
   void remove(int position);                // delete P[position] from the factor
   void solvePassive(const QpProblem& p);    // s_P = A_PP⁻¹ b_P (+ refinement)
   void accumulate(const QpProblem& p, const double* x, std::vector<Vec6>& out) const;  // M⁻¹ Jᵀ x over P
+  void accumulateAbs(const QpProblem& p, std::vector<Vec6>& out) const;  // |z_u| + Σ_P |λ_i| |M⁻¹ J_iᵀ|
 
   ActiveSetSettings settings_;
   int capacity_ = 0;
@@ -56,6 +57,7 @@ class ActiveSetSolver {
   std::vector<unsigned char> blocked_;     // rows that could not enter since the last change
   std::vector<double> s_, lambda_p_, tmp_, rhs_;
   std::vector<Vec6> dz_;
+  std::vector<Vec6> absz_;                 // round-off scale of z (accumulateAbs)
   std::vector<Vec6> kkt_scratch_;
 };
 

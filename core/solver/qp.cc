@@ -124,9 +124,11 @@ KktResidual kktResidual(const QpProblem& p, const QpSolution& s, std::vector<Vec
   }
   // Stationarity, body by body: M_b (z_b − z_u,b) − Σ_k J_k,bᵀ λ_k.
   double stat = 0.0, scale = kTiny;
+  bool finite = true;  // NaN must not vanish in a max(): track it explicitly
   for (int b = 0; b < n; ++b) {
     const Vec6& jb = jtl[static_cast<size_t>(b)];
     const Vec6 mz = p.mass(b) * (s.z[static_cast<size_t>(b)] - p.unconstrained(b));
+    finite = finite && mz.allFinite() && jb.allFinite();
     stat = std::max(stat, (mz - jb).cwiseAbs().maxCoeff());
     scale = std::max({scale, mz.cwiseAbs().maxCoeff(), jb.cwiseAbs().maxCoeff(),
                       (p.mass(b) * p.unconstrained(b)).cwiseAbs().maxCoeff()});
@@ -147,17 +149,19 @@ KktResidual kktResidual(const QpProblem& p, const QpSolution& s, std::vector<Vec
     const double scale_k = std::max({std::abs(row.c), sk, su, kTiny});
     const double slack = jz - row.c;
     const double l = s.lambda[static_cast<size_t>(k)];
-    if (row.type == RowType::Equality) {
-      r.primal = std::max(r.primal, std::abs(slack) / scale_k);
-    } else {
-      r.primal = std::max(r.primal, std::max(0.0, -slack) / scale_k);
+    // A NaN slack (NaN c or J) or an unbounded violation (c = +inf) is not a satisfied row.
+    const double viol = row.type == RowType::Equality ? std::abs(slack) : (slack >= 0.0 ? 0.0 : -slack);
+    const double primal_k = viol / scale_k;
+    finite = finite && !std::isnan(primal_k);
+    r.primal = std::max(r.primal, primal_k);
+    if (row.type == RowType::Inequality) {
       if (lam_max > 0.0) {
         r.dual = std::max(r.dual, std::max(0.0, -l) / lam_max);
         r.complementarity = std::max(r.complementarity, std::min(std::abs(l) / lam_max, std::abs(slack) / scale_k));
       }
     }
   }
-  if (!std::isfinite(r.max())) r.stationarity = std::numeric_limits<double>::infinity();
+  if (!finite || !std::isfinite(r.max())) r.stationarity = std::numeric_limits<double>::infinity();
   return r;
 }
 

@@ -180,7 +180,9 @@ TEST(MathRotation, TinyAnglesKeepRelativePrecision) {
   for (double a = 1e-300; a < 1e-5; a *= 7.3) {
     const Vec3 theta = a * rng.unitVector();
     const Quat q = expRotation(theta);
-    if (a < 1e-8) EXPECT_EQ(q.w(), 1.0) << a;  // cos(a/2) rounds to 1
+    if (a < 1e-8) {
+      EXPECT_EQ(q.w(), 1.0) << a;  // cos(a/2) rounds to 1
+    }
     EXPECT_NEAR(q.w(), std::cos(0.5 * a), 1e-16) << a;
     const Vec3 v_ref = (std::sin(0.5 * a) / a) * theta;
     EXPECT_LE((q.vec() - v_ref).norm(), 1e-15 * v_ref.norm()) << a;
