@@ -3,6 +3,7 @@
 #include <google/protobuf/io/tokenizer.h>
 #include <google/protobuf/text_format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -316,6 +317,14 @@ HandModel HandModel::fromText(const std::string& text, const std::string& source
     }
     model.joints.push_back(j);
   }
+  // Leaves first: sort joints by the depth of their child body, deepest first (stable).
+  std::vector<int> depth(model.joints.size(), 0);
+  for (size_t j = 0; j < model.joints.size(); ++j)
+    for (int b = model.joints[j].parent; b >= 0; b = parent_of[static_cast<size_t>(b)]) ++depth[j];
+  model.joint_order.resize(model.joints.size());
+  for (size_t j = 0; j < model.joints.size(); ++j) model.joint_order[j] = static_cast<int>(j);
+  std::stable_sort(model.joint_order.begin(), model.joint_order.end(),
+                   [&](int a, int b) { return depth[static_cast<size_t>(a)] > depth[static_cast<size_t>(b)]; });
   return model;
 }
 

@@ -34,6 +34,8 @@ void StepParams::validate() const {
   require(pgs.sweeps >= 1, "pgs.sweeps must be >= 1");
   require(finitePositive(pgs.relaxation) && pgs.relaxation < 2.0, "pgs.relaxation must be in (0, 2)");
   require(projection_iterations >= 0 && projection_iterations <= 100, "projection_iterations must be in [0, 100]");
+  require(projection_goal_iterations >= 0 && projection_goal_iterations <= projection_iterations,
+          "projection_goal_iterations must be in [0, projection_iterations]");
   require(finitePositive(projection_tolerance), "projection_tolerance must be > 0");
   require(finitePositive(target_unit_tolerance) && target_unit_tolerance < 0.5, "target_unit_tolerance must be in (0, 0.5)");
 }
@@ -46,6 +48,7 @@ ClusterStepper::ClusterStepper(const HandModel& model, StepParams params)
   X_W_ = model.restPoses(Pose{});
   X_prev_ = X_W_;
   last_target_ = X_W_;
+  goal_ = X_W_;
   has_last_target_.assign(model.bodies.size(), 0);
   reserve(64);
 }
@@ -185,8 +188,10 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
 
   // Integrate from rest: y = z Δt, X ← X ⊕ y Δt.
   for (int b = 0; b < n; ++b) {
-    X_prev_[static_cast<size_t>(b)] = X_W_[static_cast<size_t>(b)];
-    X_W_[static_cast<size_t>(b)] = poseUpdate(X_W_[static_cast<size_t>(b)], sol_.z[static_cast<size_t>(b)], dt2);
+    const size_t i = static_cast<size_t>(b);
+    X_prev_[i] = X_W_[i];
+    goal_[i] = poseUpdate(X_W_[i], qp_.unconstrained(b), dt2);
+    X_W_[i] = poseUpdate(X_W_[i], sol_.z[i], dt2);
   }
   const auto t4 = Clock::now();
   report_.projection_iterations = project(in);
@@ -213,9 +218,9 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
 }
 
 int ClusterStepper::project(const StepInput& in) {
-  // Position-level Newton iterations on the same rows: Δt = 1, β = 1, z_u = 0, so the solution
-  // is the M-smallest displacement that closes the joints, brings violated limits back to their
-  // bounds and moves no contact further in than it already is.
+  // Sequential QP at position level (Δt = 1, β = 1): z_u,i = G_i ⊖ X_i pulls every body towards
+  // its unconstrained goal, the rows are re-linearised at the current poses. Converges
+  // quadratically; stops as soon as joints and limits hold to the tolerance.
   RowParams pp = params_.rows;
   pp.dt = 1.0;
   pp.beta = 1.0;
@@ -227,8 +232,11 @@ int ClusterStepper::project(const StepInput& in) {
     if (std::max({e.gap, e.lock, e.limit}) <= params_.projection_tolerance) break;
     proj_.reset(n);
     assembleMasses(proj_, X_W_);
+    if (it < params_.projection_goal_iterations)
+      for (int b = 0; b < n; ++b)
+        proj_.unconstrained(b) = poseDifference(goal_[static_cast<size_t>(b)], X_W_[static_cast<size_t>(b)]);
     addJointRows(proj_, model_, X_W_.data(), pp);
-    addLimitRows(proj_, model_, X_W_.data(), nullptr, pp);
+    addLimitRows(proj_, model_, X_W_.data(), proj_.unconstrainedData(), pp);
     for (size_t i = 0; i < contact_row_.size(); ++i) {
       if (contact_row_[i] < 0) continue;
       const Contact& c = in.contacts[i];

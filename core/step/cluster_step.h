@@ -5,11 +5,16 @@
 //   assembly   masses M_i = diag(m I, R I_B Rᵀ), rows J, c  (joints, active limits, contacts)
 //   solve      z = argmin ½‖z − z_u‖²_M s.t. J_E z = c_E, J_I z ≥ c_I   (exact or PGS)
 //   integrate  X_i ← X_i ⊕ z_i Δt²                         symplectic Euler from rest, §2 step 4
-//   project    post-stabilisation: Newton iterations of the same QP at position level
-//              (z_u = 0, Δt = 1, β = 1) so that joints close to round-off, limits hold and
-//              contacts are not pushed in by the correction. This removes the second-order
-//              drift that velocity-level rows leave behind (the paper's "slightly separated
-//              phalanxes").
+//   project    sequential-QP continuation of the same problem at position level: each body's
+//              goal is where its unconstrained motion would take it (G_i = X_i ⊕ z_u,i Δt²);
+//              iterations solve min ½‖Δ − (G ⊖ X)‖²_M subject to the rows re-linearised at the
+//              current poses (Δt = 1, β = 1), so joints close to round-off, limits hold, no
+//              contact is pushed further in than it is, and joint-consistent targets are reached
+//              exactly even under large rotations. This removes the second-order error that
+//              velocity-level rows leave behind (the paper's "slightly separated phalanxes").
+//              After `projection_goal_iterations` such iterations the rest pull towards nothing
+//              (z_u = 0): pure projection, which closes the joints even where limits or
+//              contacts switch between iterations. The projection always uses the exact solver.
 //
 // The clamp k ≤ 1/Δt² means a free God object reaches its target in one step and never
 // overshoots it (k Δt² > 1 would overshoot; > 2 diverge).
@@ -38,7 +43,8 @@ struct StepParams {
   SolverKind solver = SolverKind::Exact;
   ActiveSetSettings exact;
   PgsSettings pgs;
-  int projection_iterations = 3;    ///< 0 disables post-stabilisation
+  int projection_iterations = 8;    ///< cap; 0 disables the projection (it stops when converged)
+  int projection_goal_iterations = 3;  ///< how many of them pull towards the unconstrained goal
   double projection_tolerance = 1e-12;  ///< m / rad
   double target_unit_tolerance = 1e-3;  ///< |‖q‖ − 1| above this rejects a target
 
@@ -113,7 +119,7 @@ class ClusterStepper {
 
   const HandModel& model_;
   StepParams params_;
-  std::vector<Pose> X_W_, X_prev_, last_target_;
+  std::vector<Pose> X_W_, X_prev_, last_target_, goal_;
   std::vector<unsigned char> has_last_target_;
   QpProblem qp_, proj_;
   QpSolution sol_, proj_sol_;

@@ -40,7 +40,9 @@ double gapRhs(double g, double margin, double beta, double dt2) {
 void addJointRows(QpProblem& qp, const HandModel& model, const Pose* X_W, const RowParams& prm) {
   const double k = prm.beta / (prm.dt * prm.dt);
   const Vec3 zero = Vec3::Zero();
-  for (size_t ji = 0; ji < model.joints.size(); ++ji) {
+  const bool ordered = model.joint_order.size() == model.joints.size();
+  for (size_t idx = 0; idx < model.joints.size(); ++idx) {
+    const size_t ji = ordered ? static_cast<size_t>(model.joint_order[idx]) : idx;
     const Joint& j = model.joints[ji];
     const JointGeometry g = geometry(j, X_W[j.parent], X_W[j.child]);
     const std::uint64_t base = static_cast<std::uint64_t>(ji) << 8;
