@@ -34,8 +34,6 @@ void StepParams::validate() const {
   require(pgs.sweeps >= 1, "pgs.sweeps must be >= 1");
   require(finitePositive(pgs.relaxation) && pgs.relaxation < 2.0, "pgs.relaxation must be in (0, 2)");
   require(projection_iterations >= 0 && projection_iterations <= 100, "projection_iterations must be in [0, 100]");
-  require(projection_goal_iterations >= 0 && projection_goal_iterations <= projection_iterations,
-          "projection_goal_iterations must be in [0, projection_iterations]");
   require(finitePositive(projection_tolerance), "projection_tolerance must be > 0");
   require(finitePositive(target_unit_tolerance) && target_unit_tolerance < 0.5, "target_unit_tolerance must be in (0, 0.5)");
 }
@@ -217,26 +215,42 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
   return report_;
 }
 
+namespace {
+/// True when a row from `first` on (the contact rows) carries force.
+bool anyActiveFrom(int first, const QpProblem& qp, const QpSolution& sol) {
+  for (int r = first; r < qp.numRows(); ++r)
+    if (sol.lambda[static_cast<size_t>(r)] > 0.0) return true;
+  return false;
+}
+constexpr int kGoalIterations = 3;
+}  // namespace
+
 int ClusterStepper::project(const StepInput& in) {
-  // Sequential QP at position level (Δt = 1, β = 1): z_u,i = G_i ⊖ X_i pulls every body towards
-  // its unconstrained goal, the rows are re-linearised at the current poses. Converges
-  // quadratically; stops as soon as joints and limits hold to the tolerance.
+  // Position-level Newton iterations on the same rows: Δt = 1, β = 1. While no contact carries
+  // force, z_u = G ⊖ X (towards the unconstrained goal; at most kGoalIterations), otherwise
+  // z_u = 0: the M-smallest displacement that closes the joints, brings violated limits back to
+  // their bounds and moves no contact further in than it already is. Stops once joints and
+  // limits hold to the tolerance.
   RowParams pp = params_.rows;
   pp.dt = 1.0;
   pp.beta = 1.0;
   pp.contact_beta = 1.0;
   const int n = static_cast<int>(model_.bodies.size());
+  const int first_contact = report_.equality_rows + report_.limit_rows;
+  bool pull = !anyActiveFrom(first_contact, qp_, sol_);
   int it = 0;
   for (; it < params_.projection_iterations; ++it) {
     const JointErrors e = jointErrors(model_, X_W_.data());
     if (std::max({e.gap, e.lock, e.limit}) <= params_.projection_tolerance) break;
     proj_.reset(n);
     assembleMasses(proj_, X_W_);
-    if (it < params_.projection_goal_iterations)
+    pull = pull && it < kGoalIterations;
+    if (pull)
       for (int b = 0; b < n; ++b)
         proj_.unconstrained(b) = poseDifference(goal_[static_cast<size_t>(b)], X_W_[static_cast<size_t>(b)]);
     addJointRows(proj_, model_, X_W_.data(), pp);
-    addLimitRows(proj_, model_, X_W_.data(), proj_.unconstrainedData(), pp);
+    addLimitRows(proj_, model_, X_W_.data(), pull ? proj_.unconstrainedData() : nullptr, pp);
+    const int proj_first_contact = proj_.numRows();
     for (size_t i = 0; i < contact_row_.size(); ++i) {
       if (contact_row_[i] < 0) continue;
       const Contact& c = in.contacts[i];
@@ -252,6 +266,7 @@ int ClusterStepper::project(const StepInput& in) {
     proj_.finalize();
     const SolveStats s = exact_.solve(proj_, proj_sol_);
     if (s.status == SolveStatus::NumericalFailure) break;
+    if (pull && anyActiveFrom(proj_first_contact, proj_, proj_sol_)) pull = false;
     for (int b = 0; b < n; ++b)
       X_W_[static_cast<size_t>(b)] = poseUpdate(X_W_[static_cast<size_t>(b)], proj_sol_.z[static_cast<size_t>(b)], 1.0);
   }

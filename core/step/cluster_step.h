@@ -5,16 +5,17 @@
 //   assembly   masses M_i = diag(m I, R I_B Rᵀ), rows J, c  (joints, active limits, contacts)
 //   solve      z = argmin ½‖z − z_u‖²_M s.t. J_E z = c_E, J_I z ≥ c_I   (exact or PGS)
 //   integrate  X_i ← X_i ⊕ z_i Δt²                         symplectic Euler from rest, §2 step 4
-//   project    sequential-QP continuation of the same problem at position level: each body's
-//              goal is where its unconstrained motion would take it (G_i = X_i ⊕ z_u,i Δt²);
-//              iterations solve min ½‖Δ − (G ⊖ X)‖²_M subject to the rows re-linearised at the
-//              current poses (Δt = 1, β = 1), so joints close to round-off, limits hold, no
-//              contact is pushed further in than it is, and joint-consistent targets are reached
-//              exactly even under large rotations. This removes the second-order error that
-//              velocity-level rows leave behind (the paper's "slightly separated phalanxes").
-//              After `projection_goal_iterations` such iterations the rest pull towards nothing
-//              (z_u = 0): pure projection, which closes the joints even where limits or
-//              contacts switch between iterations. The projection always uses the exact solver.
+//   project    post-stabilisation: Newton iterations of the same QP at position level
+//              (Δt = 1, β = 1, rows re-linearised at the current poses) so that joints close to
+//              round-off, limits hold and no contact is pushed further in than it is. While no
+//              contact carries force, the first iterations also pull every body towards its
+//              unconstrained goal G = X ⊕ z_u Δt² (z_u = G ⊖ X): this is Newton's method on the
+//              nonlinear problem, so joint-consistent targets are reached exactly even under
+//              large rotations, where the velocity-level rows alone lag by ≈ ½θ²L. Limits are
+//              re-linearised every iteration and may be active; contacts are the previous
+//              stage's and are not re-generated here, so once one carries force (or after three
+//              iterations) the pull stops and the iterations are a pure projection (z_u = 0).
+//              Always the exact solver.
 //
 // The clamp k ≤ 1/Δt² means a free God object reaches its target in one step and never
 // overshoots it (k Δt² > 1 would overshoot; > 2 diverge).
@@ -44,7 +45,6 @@ struct StepParams {
   ActiveSetSettings exact;
   PgsSettings pgs;
   int projection_iterations = 8;    ///< cap; 0 disables the projection (it stops when converged)
-  int projection_goal_iterations = 3;  ///< how many of them pull towards the unconstrained goal
   double projection_tolerance = 1e-12;  ///< m / rad
   double target_unit_tolerance = 1e-3;  ///< |‖q‖ − 1| above this rejects a target
 
