@@ -317,14 +317,24 @@ HandModel HandModel::fromText(const std::string& text, const std::string& source
     }
     model.joints.push_back(j);
   }
-  // Leaves first: sort joints by the depth of their child body, deepest first (stable).
-  std::vector<int> depth(model.joints.size(), 0);
-  for (size_t j = 0; j < model.joints.size(); ++j)
-    for (int b = model.joints[j].parent; b >= 0; b = parent_of[static_cast<size_t>(b)]) ++depth[j];
-  model.joint_order.resize(model.joints.size());
-  for (size_t j = 0; j < model.joints.size(); ++j) model.joint_order[j] = static_cast<int>(j);
-  std::stable_sort(model.joint_order.begin(), model.joint_order.end(),
-                   [&](int a, int b) { return depth[static_cast<size_t>(a)] > depth[static_cast<size_t>(b)]; });
+  // Depth-first postorder of the joint tree (children of a joint are the joints whose parent
+  // body is its child body); roots are joints whose parent body has no parent joint.
+  model.joint_order.clear();
+  std::vector<int> stack;  // (joint, expanded?) encoded as 2 j + expanded
+  for (size_t r = model.joints.size(); r-- > 0;)
+    if (parent_of[static_cast<size_t>(model.joints[r].parent)] < 0) stack.push_back(2 * static_cast<int>(r));
+  while (!stack.empty()) {
+    const int top = stack.back();
+    stack.pop_back();
+    const int j = top / 2;
+    if (top % 2) {
+      model.joint_order.push_back(j);
+      continue;
+    }
+    stack.push_back(2 * j + 1);
+    for (size_t c = model.joints.size(); c-- > 0;)
+      if (model.joints[c].parent == model.joints[static_cast<size_t>(j)].child) stack.push_back(2 * static_cast<int>(c));
+  }
   return model;
 }
 

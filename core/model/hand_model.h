@@ -77,8 +77,9 @@ struct HandModel {
   std::vector<Body> bodies;
   std::vector<Joint> joints;
   std::string notes;
-  /// Joint indices ordered leaves first (deepest child first). Assembling joint rows in this
-  /// order keeps the Cholesky factor of the equality block sparse (fill only towards the root).
+  /// Joint indices in depth-first postorder (every joint after the joints below it, one chain
+  /// after another). Assembling joint rows in this order keeps the Cholesky factor of the
+  /// equality block sparse and banded: fill only towards the root, within each chain's block.
   std::vector<int> joint_order;
 
   int bodyIndex(const std::string& body_name) const;  ///< -1 if absent

@@ -3,7 +3,9 @@
 // (paper ref. [9]), with the equality multipliers kept free and always passive.
 //
 //   passive set P ⊇ E;   A_PP λ_P = b_P  (λ_k = 0 for k ∉ P)
-//   add   argmin_k w_k/√A_kk over inequality rows with w_k = (Aλ − b)_k < −tol   (most violated)
+//   add   argmin_k w_k/√A_kk over inequality rows with w_k = (Aλ − b)_k < −tol   (most violated;
+//         tol is also never below a few ulps of |J_k| (|z_u| + Σ_P |λ_i| |M⁻¹J_iᵀ|), the round-off
+//         of J_k z, so noise-level slacks at degenerate vertices do not enter)
 //   drop  inequality rows of P whose λ would turn negative (step to the boundary, L-H inner loop)
 //
 // A_PP is held as a Cholesky factor L Lᵀ = A_PP + diag(ε A_kk), updated in O(|P|²) when a row
