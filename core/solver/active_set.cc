@@ -20,6 +20,7 @@ void ActiveSetSolver::reserve(int bodies, int rows) {
     capacity_ = rows;
     L_.assign(static_cast<size_t>(capacity_) * static_cast<size_t>(capacity_), 0.0);
     passive_.reserve(static_cast<size_t>(capacity_));
+    last_.assign(static_cast<size_t>(capacity_), 0);
   }
   const size_t m = static_cast<size_t>(rows);
   growTo(position_, m);
@@ -39,22 +40,32 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
   const size_t cap = static_cast<size_t>(capacity_);
   const int n = static_cast<int>(passive_.size());
   double* L = L_.data();
-  // l = L⁻¹ a with a_i = A(P_i, k): column-oriented forward substitution.
-  for (int i = 0; i < n; ++i) tmp_[static_cast<size_t>(i)] = p.A(passive_[static_cast<size_t>(i)], k);
+  double* x = tmp_.data();
+  // l = L⁻¹ a with a_i = A(P_i, k): column-oriented forward substitution skipping zeros.
+  for (int i = 0; i < n; ++i) x[i] = p.A(passive_[static_cast<size_t>(i)], k);
   double ll = 0.0;
   for (int j = 0; j < n; ++j) {
+    if (x[j] == 0.0) continue;
     const double* col = L + static_cast<size_t>(j) * cap;
-    const double x = tmp_[static_cast<size_t>(j)] / col[j];
-    tmp_[static_cast<size_t>(j)] = x;
-    ll += x * x;
-    for (int i = j + 1; i < n; ++i) tmp_[static_cast<size_t>(i)] -= col[i] * x;
+    x[j] /= col[j];
+    ll += x[j] * x[j];
+    const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
+    for (int i = j + 1; i <= end; ++i) x[i] -= col[i] * x[j];
   }
   const double eps = settings_.regularization * row.diag;
   double pivot2 = row.diag + eps - ll;
   if (!(pivot2 > eps)) pivot2 = eps;  // row (numerically) dependent on P: regularisation pivot
   if (!std::isfinite(pivot2) || !(pivot2 > 0.0)) return false;
-  for (int j = 0; j < n; ++j) L[static_cast<size_t>(j) * cap + static_cast<size_t>(n)] = tmp_[static_cast<size_t>(j)];
+  for (int j = 0; j < n; ++j) {
+    double* col = L + static_cast<size_t>(j) * cap;
+    col[n] = x[j];
+    if (x[j] == 0.0) continue;
+    int& lj = last_[static_cast<size_t>(j)];
+    for (int i = std::min(lj, n - 1) + 1; i < n; ++i) col[i] = 0.0;  // rows the bound now covers
+    lj = n;
+  }
   L[static_cast<size_t>(n) * cap + static_cast<size_t>(n)] = std::sqrt(pivot2);
+  last_[static_cast<size_t>(n)] = n;
   passive_.push_back(k);
   position_[static_cast<size_t>(k)] = n;
   lambda_p_[static_cast<size_t>(n)] = 0.0;
@@ -66,21 +77,36 @@ void ActiveSetSolver::remove(int pos) {
   const int n = static_cast<int>(passive_.size());
   double* L = L_.data();
   auto at = [&](int i, int j) -> double& { return L[static_cast<size_t>(j) * cap + static_cast<size_t>(i)]; };
-  // x = the removed column below the diagonal; it feeds a rank-one update of the trailing block.
+  auto lastOf = [&](int j) { return std::min(last_[static_cast<size_t>(j)], n - 1); };
+  // x = the removed column below the diagonal (new row indices pos … x_last); it feeds a
+  // rank-one update of the trailing block. Entries past the column's last row are zero.
   const int r = n - 1 - pos;
-  for (int i = 0; i < r; ++i) tmp_[static_cast<size_t>(i)] = at(pos + 1 + i, pos);
-  for (int j = 0; j < pos; ++j)
-    for (int i = pos + 1; i < n; ++i) at(i - 1, j) = at(i, j);
-  for (int j = pos + 1; j < n; ++j)
-    for (int i = j; i < n; ++i) at(i - 1, j - 1) = at(i, j);
+  const int x_last = lastOf(pos) - 1;
+  for (int i = 0; i < r; ++i) tmp_[static_cast<size_t>(i)] = pos + i <= x_last ? at(pos + 1 + i, pos) : 0.0;
+  // Columns before pos lose row pos (rows below move up one).
+  for (int j = 0; j < pos; ++j) {
+    const int lj = lastOf(j);
+    for (int i = pos + 1; i <= lj; ++i) at(i - 1, j) = at(i, j);
+    last_[static_cast<size_t>(j)] = lj >= pos ? std::max(j, lj - 1) : lj;
+  }
+  // Columns after pos move one left and up; rows the rank-one update may fill start as zero.
+  for (int j = pos + 1; j < n; ++j) {
+    const int lj = lastOf(j);
+    for (int i = j; i <= lj; ++i) at(i - 1, j - 1) = at(i, j);
+    const int new_last = std::max(lj - 1, std::min(x_last, n - 2));
+    for (int i = lj; i <= new_last; ++i) at(i, j - 1) = 0.0;
+    last_[static_cast<size_t>(j - 1)] = new_last;
+  }
   // Rank-one update T Tᵀ + x xᵀ of the trailing r×r block at (pos, pos).
   for (int k = 0; k < r; ++k) {
-    double& Tkk = at(pos + k, pos + k);
     const double xk = tmp_[static_cast<size_t>(k)];
+    if (xk == 0.0) continue;
+    double& Tkk = at(pos + k, pos + k);
     const double rr = std::hypot(Tkk, xk);
     const double c = rr / Tkk, s = xk / Tkk;
     Tkk = rr;
-    for (int i = k + 1; i < r; ++i) {
+    const int end = last_[static_cast<size_t>(pos + k)] - pos;
+    for (int i = k + 1; i <= end; ++i) {
       double& Tik = at(pos + i, pos + k);
       Tik = (Tik + s * tmp_[static_cast<size_t>(i)]) / c;
       tmp_[static_cast<size_t>(i)] = c * tmp_[static_cast<size_t>(i)] - s * Tik;
@@ -93,6 +119,27 @@ void ActiveSetSolver::remove(int pos) {
     position_[static_cast<size_t>(passive_[static_cast<size_t>(i - 1)])] = i - 1;
   }
   passive_.pop_back();
+}
+
+double ActiveSetSolver::factorResidual(const QpProblem& p, int* passive_size) const {
+  const int n = static_cast<int>(passive_.size());
+  if (passive_size) *passive_size = n;
+  const size_t cap = static_cast<size_t>(capacity_);
+  // Entries past a column's bound are zero by construction; read only what the bound covers.
+  auto L = [&](int i, int j) { return i >= j && i <= std::min(last_[static_cast<size_t>(j)], n - 1) ? L_[static_cast<size_t>(j) * cap + static_cast<size_t>(i)] : 0.0; };
+  double err = 0.0, scale = kTiny;
+  for (int i = 0; i < n; ++i) {
+    const Row& ri = p.row(passive_[static_cast<size_t>(i)]);
+    scale = std::max(scale, ri.diag);
+    for (int j = 0; j <= i; ++j) {
+      double llt = 0.0;
+      for (int t = 0; t <= j; ++t) llt += L(i, t) * L(j, t);
+      double a = p.A(passive_[static_cast<size_t>(i)], passive_[static_cast<size_t>(j)]);
+      if (i == j) a += settings_.regularization * ri.diag;
+      err = std::max(err, std::abs(llt - a));
+    }
+  }
+  return err / scale;
 }
 
 void ActiveSetSolver::accumulate(const QpProblem& p, const double* x, std::vector<Vec6>& out) const {
@@ -118,16 +165,20 @@ void ActiveSetSolver::solvePassive(const QpProblem& p) {
   const size_t cap = static_cast<size_t>(capacity_);
   const int n = static_cast<int>(passive_.size());
   const double* L = L_.data();
+  const int* last = last_.data();
   auto cholSolve = [&](double* x) {  // x ← (L Lᵀ)⁻¹ x
     for (int j = 0; j < n; ++j) {
+      if (x[j] == 0.0) continue;
       const double* col = L + static_cast<size_t>(j) * cap;
       x[j] /= col[j];
-      for (int i = j + 1; i < n; ++i) x[i] -= col[i] * x[j];
+      const int end = std::min(last[j], n - 1);
+      for (int i = j + 1; i <= end; ++i) x[i] -= col[i] * x[j];
     }
     for (int j = n - 1; j >= 0; --j) {
       const double* col = L + static_cast<size_t>(j) * cap;
       double acc = x[j];
-      for (int i = j + 1; i < n; ++i) acc -= col[i] * x[i];
+      const int end = std::min(last[j], n - 1);
+      for (int i = j + 1; i <= end; ++i) acc -= col[i] * x[i];
       x[j] = acc / col[j];
     }
   };
@@ -220,7 +271,8 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
       for (int i = 0; i < n; ++i) {
         if (!isIneq(passive_[static_cast<size_t>(i)]) || s_[static_cast<size_t>(i)] > 0.0) continue;
         const double li = lambda_p_[static_cast<size_t>(i)];
-        const double a = li / (li - s_[static_cast<size_t>(i)]);
+        const double den = li - s_[static_cast<size_t>(i)];
+        const double a = den > 0.0 ? li / den : 0.0;  // li = s_i = 0: the row leaves at once
         if (hit < 0 || a < alpha) { alpha = a; hit = i; }
       }
       if (hit < 0) {

@@ -15,7 +15,10 @@
 // recovers full accuracy where A_PP is regular. The paper's J k = c step (Eq. 7) is not used:
 // only A and b = c − J z_u are needed.
 //
-// No allocation once the buffers have grown to the largest problem seen (reserve()).
+// The factor is stored dense but worked on sparsely: zero entries of the substituted vector are
+// skipped and every column carries the index of its last possibly-nonzero row, so that rows
+// appended in a tree's depth-first postorder (joint rows, see HandModel::joint_order) cost
+// only their fill. No allocation once the buffers have grown to the largest problem seen.
 #pragma once
 
 #include <vector>
@@ -44,6 +47,10 @@ class ActiveSetSolver {
 
   const ActiveSetSettings& settings() const { return settings_; }
 
+  /// Diagnostic for tests: max |(L Lᵀ)_ij − (A_PP + ε diag A)_ij| / max_i A_ii for the factor
+  /// left by the last solve on `problem`, and the passive-set size through `passive_size`.
+  double factorResidual(const QpProblem& problem, int* passive_size = nullptr) const;
+
  private:
   bool append(const QpProblem& p, int k);   // Cholesky append; false if numerically impossible
   void remove(int position);                // delete P[position] from the factor
@@ -55,6 +62,7 @@ class ActiveSetSolver {
   int capacity_ = 0;
   std::vector<double> L_;                  // column-major, capacity_ × capacity_
   std::vector<int> passive_;               // row indices in factor order
+  std::vector<int> last_;                  // per factor column: last row that may be nonzero
   std::vector<int> position_;              // row -> position in passive_ or -1
   std::vector<unsigned char> blocked_;     // rows that could not enter since the last change
   std::vector<double> s_, lambda_p_, tmp_, rhs_;
