@@ -31,7 +31,7 @@ void ActiveSetSolver::reserve(int bodies, int rows) {
   growTo(rhs_, m);
   growTo(dz_, static_cast<size_t>(bodies));
   growTo(absz_, static_cast<size_t>(bodies));
-  growTo(kkt_scratch_, static_cast<size_t>(bodies));
+  growTo(kkt_scratch_, 2 * static_cast<size_t>(bodies));
 }
 
 bool ActiveSetSolver::append(const QpProblem& p, int k) {

@@ -6,7 +6,7 @@
 namespace godhand {
 
 void PgsSolver::reserve(int bodies, int) {
-  if (kkt_scratch_.size() < static_cast<size_t>(bodies)) kkt_scratch_.resize(static_cast<size_t>(bodies));
+  if (kkt_scratch_.size() < 2 * static_cast<size_t>(bodies)) kkt_scratch_.resize(2 * static_cast<size_t>(bodies));
 }
 
 SolveStats PgsSolver::solve(const QpProblem& p, QpSolution& sol, const double* warm) {

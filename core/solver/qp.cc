@@ -113,14 +113,20 @@ KktResidual kktResidual(const QpProblem& p, const QpSolution& s, std::vector<Vec
   KktResidual r;
   const int n = p.numBodies(), m = p.numRows();
   double lam_max = 0.0;
-  jtl.resize(static_cast<size_t>(n));
+  if (jtl.size() < 2 * static_cast<size_t>(n)) jtl.resize(2 * static_cast<size_t>(n));
   for (auto& v : jtl) v.setZero();
+  Vec6* absz = jtl.data() + n;  // |z_u| + Σ |λ| |M⁻¹Jᵀ| per body: the round-off scale of z
+  for (int b = 0; b < n; ++b) absz[b] = p.unconstrained(b).cwiseAbs();
   for (int k = 0; k < m; ++k) {
     const Row& row = p.row(k);
     const double l = s.lambda[static_cast<size_t>(k)];
     lam_max = std::max(lam_max, std::abs(l));
     jtl[static_cast<size_t>(row.body0)] += l * row.J0;
-    if (row.body1 >= 0) jtl[static_cast<size_t>(row.body1)] += l * row.J1;
+    absz[row.body0] += std::abs(l) * row.W0.cwiseAbs();
+    if (row.body1 >= 0) {
+      jtl[static_cast<size_t>(row.body1)] += l * row.J1;
+      absz[row.body1] += std::abs(l) * row.W1.cwiseAbs();
+    }
   }
   // Stationarity, body by body: M_b (z_b − z_u,b) − Σ_k J_k,bᵀ λ_k.
   double stat = 0.0, scale = kTiny;
@@ -139,12 +145,12 @@ KktResidual kktResidual(const QpProblem& p, const QpSolution& s, std::vector<Vec
     const Vec6& z0 = s.z[static_cast<size_t>(row.body0)];
     double jz = row.J0.dot(z0);
     double sk = row.J0.cwiseAbs().dot(z0.cwiseAbs());
-    double su = row.J0.cwiseAbs().dot(p.unconstrained(row.body0).cwiseAbs());
+    double su = row.J0.cwiseAbs().dot(absz[row.body0]);
     if (row.body1 >= 0) {
       const Vec6& z1 = s.z[static_cast<size_t>(row.body1)];
       jz += row.J1.dot(z1);
       sk += row.J1.cwiseAbs().dot(z1.cwiseAbs());
-      su += row.J1.cwiseAbs().dot(p.unconstrained(row.body1).cwiseAbs());
+      su += row.J1.cwiseAbs().dot(absz[row.body1]);
     }
     const double scale_k = std::max({std::abs(row.c), sk, su, kTiny});
     const double slack = jz - row.c;

@@ -104,7 +104,9 @@ struct QpSolution {
 };
 
 /// Relative violation of each KKT condition (METHOD.md §3). Each row is measured against its own
-/// scale s_k = max(|c_k|, Σ|J_k||z|, Σ|J_k||z_u|) so linear and angular rows compare:
+/// scale s_k = max(|c_k|, |J_k|·(|z_u| + Σ_i |λ_i| |M⁻¹J_iᵀ|)), the round-off scale of computing
+/// J_k z with z = z_u + Σ λ_i M⁻¹J_iᵀ (large terms may cancel), so linear and angular rows compare
+/// and round-off never reads as a violation:
 ///   stationarity   ‖M(z − z_u) − Jᵀλ‖∞ / max(‖M(z − z_u)‖∞, ‖Jᵀλ‖∞, ‖M z_u‖∞)
 ///   primal         max_k viol_k / s_k   (viol = |J z − c| for E, max(0, c − J z) for I)
 ///   dual           max_k max(0, −λ_k) / ‖λ‖∞ over I
@@ -114,7 +116,7 @@ struct KktResidual {
   double max() const;
 };
 KktResidual kktResidual(const QpProblem& problem, const QpSolution& solution);
-/// Same, with caller-owned scratch (one Vec6 per body) so that a warm call allocates nothing.
+/// Same, with caller-owned scratch (two Vec6 per body) so that a warm call allocates nothing.
 KktResidual kktResidual(const QpProblem& problem, const QpSolution& solution, std::vector<Vec6>& scratch);
 
 }  // namespace godhand

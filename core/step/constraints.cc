@@ -30,8 +30,13 @@ Vec6 block(const Vec3& lin, const Vec3& ang) {
   return v;
 }
 
+/// Gaps within this of their bound (m or rad) are on it: distances and angles are computed with
+/// about this much round-off, and dividing noise by Δt² would make the solver chase it.
+constexpr double kGapRoundoff = 1e-12;
+
 /// Gap-style right-hand side: full closing allowed while g > margin, gradual push-out inside.
 double gapRhs(double g, double margin, double beta, double dt2) {
+  if (std::abs(g - margin) < kGapRoundoff) return 0.0;
   return g > margin ? -(g - margin) / dt2 : beta * (margin - g) / dt2;
 }
 

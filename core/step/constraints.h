@@ -20,6 +20,8 @@
 // the God object, signed distance d ≥ 0 when separated):
 //   J = [n ; u × n] with u = p − p_body;   c = −(d − δ)/Δt² when d > δ (the gap may close to
 //   the margin δ but not cross it), c = β_c (δ − d)/Δt² when d ≤ δ (pushed out gradually).
+//   Limits use the same rule with δ = 0. A gap within 1e-12 (m or rad) of its bound is on it
+//   (c = 0): that is the round-off of the distance or angle, not a motion to make.
 #pragma once
 
 #include <cstdint>

@@ -1136,8 +1136,11 @@ TEST(SolverWeakness, MixedDegenerateProblems) {
     if (st.status != SolveStatus::Converged) {
       (st.status == SolveStatus::Stalled ? stalled : other) += 1;
       worst_stalled = std::max(worst_stalled, k.max());
-      // Reported, never hidden: the library's own residual shows it.
-      EXPECT_NEAR(st.kkt_residual, k.max(), 1e-6 + 0.5 * k.max());
+      // Reported, never hidden: the status says Stalled, and the library's own residual (measured,
+      // like the solver's acceptance test, on the round-off scale of J z) matches the oracle's.
+      // The oracle's scale |M⁻¹||J|ᵀ|λ| bounds the library's |M⁻¹Jᵀ||λ| from above: agree within 4×.
+      EXPECT_GE(st.kkt_residual, 0.25 * k.maxRoundoff() - kKktTol);
+      EXPECT_LE(st.kkt_residual, 4.0 * k.maxRoundoff() + kKktTol);
       continue;
     }
     if (k.maxRoundoff() > kKktTol) {
