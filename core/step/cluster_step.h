@@ -45,7 +45,7 @@ struct StepParams {
   ActiveSetSettings exact;
   PgsSettings pgs;
   int projection_iterations = 8;    ///< cap; 0 disables the projection (it stops when converged)
-  double projection_tolerance = 1e-12;  ///< m / rad
+  double projection_tolerance = 1e-10;  ///< m / rad: joints and limits closed to this
   double target_unit_tolerance = 1e-3;  ///< |‖q‖ − 1| above this rejects a target
 
   /// Throws std::invalid_argument naming the first bad field.
