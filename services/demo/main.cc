@@ -159,9 +159,25 @@ int main(int argc, char** argv) {
       {"lift off, fingers open", Vec3(0.0, 0.06, 0.075), Vec3(0.0, 0.03, 0.15), 2.6, 0.0},
   };
   const size_t n = model.bodies.size();
-  Pose X_WM;
-  X_WM.p = phases[0].from;
   const auto rest = model.restPoses(Pose{});
+  // Raise the whole script for models that would start inside the table (a long tool): the God
+  // objects must start collision-free (re-acquisition inside objects is the tracker stage's).
+  Vec3 raise = Vec3::Zero();
+  {
+    std::vector<Contact> tmp;
+    Pose X0;
+    X0.p = phases[0].from;
+    for (size_t b = 0; b < n; ++b) {
+      const Pose Xb = X0 * rest[b];
+      const double lowest = model.bodies[b].shape.type == ShapeType::Box
+                                ? Xb.p.z() - (Xb.q.toRotationMatrix().cwiseAbs() * model.bodies[b].shape.half_extents).z()
+                                : std::min((Xb * Vec3(0, 0, -model.bodies[b].shape.half_length)).z(),
+                                           (Xb * Vec3(0, 0, model.bodies[b].shape.half_length)).z()) - model.bodies[b].shape.radius;
+      raise.z() = std::max(raise.z(), 0.01 - lowest);
+    }
+  }
+  Pose X_WM;
+  X_WM.p = phases[0].from + raise;
   stepper->reset(model.restPoses(X_WM));
   std::vector<Pose> targets(n);
   std::vector<Contact> contacts;
@@ -183,7 +199,7 @@ int main(int argc, char** argv) {
     for (int f = 0; f < frames; ++f) {
       const double s = (f + 1.0) / frames;
       Pose X;
-      X.p = ph.from + s * (ph.to - ph.from);
+      X.p = ph.from + s * (ph.to - ph.from) + raise;
       const double curl = ph.curl_from + s * (ph.curl_to - ph.curl_from);
       // Tracked hand: the model's rest pose with every finger joint curled by `curl`, built
       // forward along each chain (this is a target: it may exceed limits and enter objects).
