@@ -154,7 +154,7 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
   for (int r = 0; r < report_.rows; ++r) {
     const std::uint64_t key = qp_.row(r).key;
     double l = 0.0;
-    if (key) {
+    if (key && params_.warm_start) {
       auto it = std::lower_bound(warm_prev_.begin(), warm_prev_.end(), std::make_pair(key, -HUGE_VAL));
       if (it != warm_prev_.end() && it->first == key) l = it->second;
     }

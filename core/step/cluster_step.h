@@ -42,6 +42,7 @@ struct StepParams {
   double k_s = 1e6;                 ///< coupling stiffness, 1/s² (clamped to 1/Δt²)
   RowParams rows;                   ///< β, margin δ, … (rows.dt is overwritten by dt)
   SolverKind solver = SolverKind::Exact;
+  bool warm_start = true;           ///< start from last step's active set (exact) or λ (PGS)
   ActiveSetSettings exact;
   PgsSettings pgs;
   int projection_iterations = 8;    ///< cap; 0 disables the projection (it stops when converged)

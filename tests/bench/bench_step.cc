@@ -7,7 +7,9 @@
 //
 //   build/bin/godhand-bench-step --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 //
-// Counters: rows, solver iterations, active-set size, KKT residual of that step.
+// Counters: rows, solver iterations, active-set size, KKT residual (max over the run), mean
+// solve-stage time. `_cold` variants solve every step without the previous step's active set /
+// multipliers.
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -41,7 +43,7 @@ Vec3 underside(const Body& b, const Pose& X, double s, double t) {
 }
 
 struct Scenario {
-  explicit Scenario(SolverKind kind, int contacts) : params(makeParams(kind)), stepper(hand(), params), n(contacts) {
+  Scenario(SolverKind kind, bool warm, int contacts) : params(makeParams(kind, warm)), stepper(hand(), params), n(contacts) {
     start = hand().restPoses(Pose{});
     for (size_t b = 0; b < start.size(); ++b) support.push_back(underside(hand().bodies[b], start[b], 0, 0).z());
     stepper.reset(start);
@@ -49,9 +51,10 @@ struct Scenario {
     targets = start;
     contacts_buf.resize(static_cast<size_t>(contacts));
   }
-  static StepParams makeParams(SolverKind kind) {
+  static StepParams makeParams(SolverKind kind, bool warm) {
     StepParams p;
     p.solver = kind;
+    p.warm_start = warm;
     p.pgs.sweeps = 30;
     return p;
   }
@@ -84,8 +87,8 @@ struct Scenario {
   std::vector<Contact> contacts_buf;
 };
 
-void BM_HandStep(benchmark::State& state, SolverKind kind) {
-  Scenario sc(kind, static_cast<int>(state.range(0)));
+void BM_HandStep(benchmark::State& state, SolverKind kind, bool warm) {
+  Scenario sc(kind, warm, static_cast<int>(state.range(0)));
   int frame = 0;
   for (int i = 0; i < 50; ++i) {  // warm up into steady contact
     sc.update(frame++);
@@ -122,6 +125,8 @@ void contactCounts(benchmark::internal::Benchmark* b) {
 
 }  // namespace
 
-BENCHMARK_CAPTURE(BM_HandStep, exact, godhand::SolverKind::Exact)->Apply(contactCounts);
-BENCHMARK_CAPTURE(BM_HandStep, pgs, godhand::SolverKind::Pgs)->Apply(contactCounts);
+BENCHMARK_CAPTURE(BM_HandStep, exact, godhand::SolverKind::Exact, true)->Apply(contactCounts);
+BENCHMARK_CAPTURE(BM_HandStep, pgs, godhand::SolverKind::Pgs, true)->Apply(contactCounts);
+BENCHMARK_CAPTURE(BM_HandStep, exact_cold, godhand::SolverKind::Exact, false)->Apply(contactCounts);
+BENCHMARK_CAPTURE(BM_HandStep, pgs_cold, godhand::SolverKind::Pgs, false)->Apply(contactCounts);
 BENCHMARK_MAIN();
