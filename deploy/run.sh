@@ -36,6 +36,7 @@ case $mode in
     echo "== core tests under ASan + UBSan =="
     mkdir -p build-asan
     configure build-asan -DGODHAND_SANITIZE=ON -DGODHAND_BENCHMARKS=OFF -DCMAKE_BUILD_TYPE=Debug \
+      -DCMAKE_CXX_FLAGS="-D_GLIBCXX_ASSERTIONS" \
       -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g"
     build build-asan godhand_core_tests godhand_alloc_test
     ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \

@@ -232,7 +232,18 @@ HandModel HandModel::fromText(const std::string& text, const std::string& source
     }
     b.mass = pbb.mass();
     if (!(b.mass > 0 && finite(b.mass))) throw ModelError(where("mass") + "mass must be > 0 (kg), got " + std::to_string(b.mass));
+    // Sizes from 1 µm to 100 m and masses from 1 µg to 1000 t keep every derived quantity (inertia,
+    // its inverse, Δt² terms) far from overflow and underflow.
+    const double size = b.shape.type == ShapeType::Box ? b.shape.half_extents.maxCoeff()
+                                                       : b.shape.radius + b.shape.half_length;
+    const double small = b.shape.type == ShapeType::Box ? b.shape.half_extents.minCoeff() : b.shape.radius;
+    if (!(small >= 1e-6 && size <= 100.0))
+      throw ModelError(where(b.shape.type == ShapeType::Box ? "box" : b.shape.type == ShapeType::Sphere ? "sphere" : "capsule") +
+                       "shape dimensions must lie in [1e-6, 100] m");
+    if (!(b.mass >= 1e-9 && b.mass <= 1e6)) throw ModelError(where("mass") + "mass must lie in [1e-9, 1e6] kg, got " + std::to_string(b.mass));
     b.inertia = inertiaDiagonal(b.shape, b.mass);
+    if (!b.inertia.allFinite() || !(b.inertia.minCoeff() > 0.0))
+      throw ModelError(where("mass") + "the inertia derived from shape and mass is not finite and positive");
     b.X_MB_rest.p = toVec(pbb.rest_position());
     if (!b.X_MB_rest.p.allFinite()) throw ModelError(where("rest_position") + "must be finite");
     if (pbb.has_rest_orientation()) {
@@ -283,7 +294,7 @@ HandModel HandModel::fromText(const std::string& text, const std::string& source
     for (int k = 0; k < pj.limits_size(); ++k) {
       const pb::Limit& l = pj.limits(k);
       const std::string wl = loc.at(pj, t, "limits", k, line, path + ".limits[" + std::to_string(k) + "]");
-      if (l.angle() < 1 || static_cast<int>(l.angle()) > j.angleCount())
+      if (l.angle() < 1 || l.angle() > static_cast<unsigned>(j.angleCount()))
         throw ModelError(wl + "angle must be 1" + std::string(j.angleCount() == 2 ? " or 2" : "") +
                          (j.angleCount() == 0 ? " (a FIXED joint has no angles)" : "") + " for this joint type");
       if (!finite(l.lower()) || !finite(l.upper()) || l.lower() > l.upper() || l.lower() < -kPi || l.upper() > kPi)

@@ -16,8 +16,11 @@ void growTo(V& v, size_t n) {
 }  // namespace
 
 void ActiveSetSolver::reserve(int bodies, int rows) {
-  if (rows > capacity_) {
-    capacity_ = rows;
+  const int cap_limit = settings_.max_passive > 0 ? settings_.max_passive : 12 * bodies + 128;
+  const int want = std::min(rows, cap_limit);
+  if (want > capacity_) {
+    // Grow geometrically (up to the cap) so that slowly rising contact counts reallocate rarely.
+    capacity_ = std::min(cap_limit, std::max(want, capacity_ + capacity_ / 2));
     L_.assign(static_cast<size_t>(capacity_) * static_cast<size_t>(capacity_), 0.0);
     passive_.reserve(static_cast<size_t>(capacity_));
     last_.assign(static_cast<size_t>(capacity_), 0);
@@ -37,6 +40,7 @@ void ActiveSetSolver::reserve(int bodies, int rows) {
 bool ActiveSetSolver::append(const QpProblem& p, int k) {
   const Row& row = p.row(k);
   if (!(row.diag > 0.0) || !std::isfinite(row.diag)) return false;
+  if (static_cast<int>(passive_.size()) >= capacity_) return false;  // passive-set cap reached
   const size_t cap = static_cast<size_t>(capacity_);
   const int n = static_cast<int>(passive_.size());
   double* L = L_.data();
@@ -89,23 +93,28 @@ void ActiveSetSolver::remove(int pos) {
     for (int i = pos + 1; i <= lj; ++i) at(i - 1, j) = at(i, j);
     last_[static_cast<size_t>(j)] = lj >= pos ? std::max(j, lj - 1) : lj;
   }
-  // Columns after pos move one left and up; rows the rank-one update may fill start as zero.
+  // Columns after pos move one left and up (the rank-one update below extends their bounds).
   for (int j = pos + 1; j < n; ++j) {
     const int lj = lastOf(j);
     for (int i = j; i <= lj; ++i) at(i - 1, j - 1) = at(i, j);
-    const int new_last = std::max(lj - 1, std::min(x_last, n - 2));
-    for (int i = lj; i <= new_last; ++i) at(i, j - 1) = 0.0;
-    last_[static_cast<size_t>(j - 1)] = new_last;
+    last_[static_cast<size_t>(j - 1)] = lj - 1;
   }
-  // Rank-one update T Tᵀ + x xᵀ of the trailing r×r block at (pos, pos).
+  // Rank-one update T Tᵀ + x xᵀ of the trailing r×r block at (pos, pos). Passing column k, x
+  // takes on that column's nonzeros, so x's extent (xend) grows, and every later column it
+  // meets must cover it: its bound is raised and the newly covered entries start as zero.
+  int xend = x_last - pos;
   for (int k = 0; k < r; ++k) {
     const double xk = tmp_[static_cast<size_t>(k)];
     if (xk == 0.0) continue;
+    int& lk = last_[static_cast<size_t>(pos + k)];
+    for (int i = lk + 1; i <= pos + xend; ++i) at(i, pos + k) = 0.0;
+    lk = std::max(lk, pos + xend);
+    const int end = lk - pos;
+    xend = end;
     double& Tkk = at(pos + k, pos + k);
     const double rr = std::hypot(Tkk, xk);
     const double c = rr / Tkk, s = xk / Tkk;
     Tkk = rr;
-    const int end = last_[static_cast<size_t>(pos + k)] - pos;
     for (int i = k + 1; i <= end; ++i) {
       double& Tik = at(pos + i, pos + k);
       Tik = (Tik + s * tmp_[static_cast<size_t>(i)]) / c;
@@ -208,8 +217,9 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
   auto isIneq = [&](int k) { return p.row(k).type == RowType::Inequality; };
 
   // P starts with every equality row (multipliers free), then last step's active rows.
+  bool equality_missing = false;  // an equality that cannot be factorised: not a converged solve
   for (int k = 0; k < m; ++k)
-    if (!isIneq(k)) append(p, k);
+    if (!isIneq(k) && !append(p, k)) equality_missing = equality_missing || p.row(k).c != 0.0 || p.row(k).diag != 0.0;
   if (warm_passive)
     for (int k = 0; k < m; ++k)
       if (isIneq(k) && warm_passive[k]) append(p, k);
@@ -311,8 +321,29 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
   }
   stats.active_set_size = active;
   stats.kkt_residual = kktResidual(p, sol, kkt_scratch_).max();
+  // Equalities must hold in plain terms too: the round-off-scaled residual cannot see conflicting
+  // equalities, whose regularised multipliers (~1/ε) inflate the very scale it divides by.
+  {
+    double global = kTiny;
+    for (int k = 0; k < m; ++k) {
+      const Row& row = p.row(k);
+      global = std::max({global, std::abs(row.c), std::abs(row.c - row.b), p.rowAbsDot(k, sol.z.data())});
+    }
+    // Ill-conditioning leaves at most ~1e-5 of a row's scale; conflicts leave O(1).
+    for (int k = 0; k < m; ++k) {
+      const Row& row = p.row(k);
+      if (row.type != RowType::Equality) continue;
+      const double scale = std::max({std::abs(row.c), std::abs(row.c - row.b), p.rowAbsDot(k, sol.z.data())});
+      const double viol = std::abs(p.rowDot(k, sol.z.data()) - row.c);
+      if (viol > 1e-3 * scale + 1e-9 * global) {
+        equality_missing = true;
+        stats.kkt_residual = std::max(stats.kkt_residual, viol / std::max(scale, kTiny));
+      }
+    }
+  }
   if (!finite || !std::isfinite(stats.kkt_residual)) stats.status = SolveStatus::NumericalFailure;
-  else if (converged) stats.status = SolveStatus::Converged;
+  else if (converged && !equality_missing && stats.kkt_residual <= settings_.converged_kkt) stats.status = SolveStatus::Converged;
+  else if (converged) stats.status = SolveStatus::Stalled;  // no violated row can enter, KKT not met
   else if (stalled) stats.status = SolveStatus::Stalled;
   else stats.status = SolveStatus::IterationLimit;
   return stats;

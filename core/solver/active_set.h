@@ -32,13 +32,16 @@ struct ActiveSetSettings {
   double regularization = 1e-13; ///< ε, relative to each row's A_kk
   double tolerance = 1e-11;      ///< relative slack tolerance for "violated"
   int refinement_steps = 1;      ///< iterative refinement per solve of A_PP
+  double converged_kkt = 1e-6;   ///< a solve is Converged only if its KKT residual is below this
+  int max_passive = 0;           ///< passive-set (factor) size cap; 0 = 12 N + 128 for N bodies
 };
 
 class ActiveSetSolver {
  public:
   explicit ActiveSetSolver(ActiveSetSettings settings = {}) : settings_(settings) {}
 
-  /// Grows every buffer for problems with up to `bodies` bodies and `rows` rows.
+  /// Grows every buffer for problems with up to `bodies` bodies and `rows` rows. The factor is
+  /// sized by the passive-set cap, not by the rows: memory stays O(cap²) however many contacts.
   void reserve(int bodies, int rows);
 
   /// Solves the problem. `warm_passive`, if given, has one flag per row: inequality rows that were

@@ -81,7 +81,8 @@ enum class SolveStatus : std::uint8_t {
   Converged,       ///< KKT conditions hold to the tolerance
   IterationLimit,  ///< the exact solver hit its iteration cap (result usable, not optimal)
   SweepLimit,      ///< PGS ran its fixed sweeps (approximate by design)
-  Stalled,         ///< violated rows remain that cannot enter the active set (degenerate)
+  Stalled,         ///< violated rows remain that cannot enter the active set (degenerate,
+                   ///< infeasible or conflicting rows, passive-set cap): result used, KKT not met
   NumericalFailure ///< non-finite numbers appeared; the result must not be used
 };
 const char* toString(SolveStatus s);

@@ -150,6 +150,10 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
   }
   qp_.finalize();
   report_.rows = qp_.numRows();
+  if (warm_lambda_.size() < static_cast<size_t>(report_.rows)) {  // only when rows exceed all seen
+    warm_lambda_.resize(static_cast<size_t>(report_.rows));
+    warm_flags_.resize(static_cast<size_t>(report_.rows));
+  }
   // Warm start from last step's multipliers, matched by row key.
   for (int r = 0; r < report_.rows; ++r) {
     const std::uint64_t key = qp_.row(r).key;

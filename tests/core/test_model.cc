@@ -464,3 +464,31 @@ TEST(ModelJointAngles, RevoluteIgnoresNothingAndGapIsAnchorDistance) {
 
 }  // namespace
 }  // namespace godhand
+
+namespace godhand {
+namespace {
+
+// Review findings: sizes and masses whose derived inertia overflows, underflows or is NaN, and a
+// limit angle beyond int range, must be rejected with file:line:field, never loaded or crash.
+TEST(ModelErrors, ExtremeSizesAndMassesAreRejected) {
+  const int a_sphere = lineOf(kGood, "sphere { radius: 0.01 }");
+  expectError(replaced(kGood, "sphere { radius: 0.01 }", "sphere { radius: 1e200 }"), a_sphere, "bodies[0].sphere", "dimensions");
+  expectError(replaced(kGood, "sphere { radius: 0.01 }", "sphere { radius: 1e-200 }"), a_sphere, "bodies[0].sphere", "dimensions");
+  const int b_capsule = lineOf(kGood, "capsule {");
+  expectError(replaced(kGood, "half_length: 0.02", "half_length: 1e308"), b_capsule, "bodies[1].capsule", "dimensions");
+  const int a_mass = lineOf(kGood, "  mass: 0.1\n");
+  expectError(replaced(kGood, "  mass: 0.1\n", "  mass: 1e-320\n"), a_mass, "bodies[0].mass", "mass");
+  expectError(replaced(kGood, "  mass: 0.1\n", "  mass: 1e308\n"), a_mass, "bodies[0].mass", "mass");
+  const int box_line = a_sphere;
+  expectError(replaced(kGood, "sphere { radius: 0.01 }", "box { half_extents { x: 0.01 y: 1e200 z: 0.01 } }"), box_line,
+              "bodies[0].box", "dimensions");
+}
+
+TEST(ModelErrors, HugeLimitAngleIsRejected) {
+  const int line = lineOf(kGood, "limits {");
+  for (const char* angle : {"4294967295", "2147483648", "3"})
+    expectError(replaced(kGood, "limits { angle: 1", std::string("limits { angle: ") + angle), line, "limits[0]", "angle");
+}
+
+}  // namespace
+}  // namespace godhand

@@ -622,6 +622,68 @@ TEST(SolverActiveSet, IncrementalFactorMatchesPassiveBlock) {
               worst, static_cast<double>(passive_total) / 800.0);
 }
 
+// Review finding: with integer-like rows (entries in {−2, −1, 0, 1}) factor entries cancel to
+// exactly zero, so the deletion's rank-one update must still extend each column's nonzero bound as
+// x fills in. Random warm sets force deletions at every position; the factor must stay exact.
+TEST(SolverActiveSet, IncrementalFactorWithExactCancellations) {
+  std::mt19937 gen(2024);
+  ActiveSetSolver solver;
+  QpProblem qp;
+  QpSolution sol;
+  double worst = 0.0;
+  constexpr int kTrials = 200000;  // the failure this guards against is rare (~1 in 40,000)
+  for (int trial = 0; trial < kTrials; ++trial) {
+    const int nb = 1 + static_cast<int>(gen() % 3), m = 4 + static_cast<int>(gen() % 24);
+    qp.reset(nb);
+    for (int b = 0; b < nb; ++b) qp.setRigidMass(b, 1.0 + b, Mat3::Identity(), Vec3(0.1, 0.2, 0.3));
+    for (int k = 0; k < m; ++k) {
+      Vec6 J0, J1;
+      for (int i = 0; i < 6; ++i) {
+        const int r0 = static_cast<int>(gen() % 5), r1 = static_cast<int>(gen() % 5);
+        J0[i] = r0 < 2 ? 0.0 : r0 - 3.0;
+        J1[i] = r1 < 2 ? 0.0 : r1 - 3.0;
+      }
+      if (J0.isZero()) J0[0] = 1.0;
+      const int b0 = static_cast<int>(gen() % static_cast<unsigned>(nb));
+      const int b1 = nb > 1 && gen() % 2 ? (b0 + 1) % nb : -1;
+      qp.addRow(RowType::Inequality, b0, J0, b1, J1, static_cast<double>(static_cast<int>(gen() % 7) - 3), 0);
+    }
+    qp.finalize();
+    std::vector<unsigned char> flags(static_cast<size_t>(m));
+    for (auto& f : flags) f = gen() % 2;
+    solver.solve(qp, sol, flags.data());
+    const double r = solver.factorResidual(qp);
+    ASSERT_LE(r, 1e-12) << "trial " << trial;
+    worst = std::max(worst, r);
+  }
+  std::printf("[ stats    ] factor with exact cancellations: max residual %.2e over %d warm-started solves\n", worst, kTrials);
+}
+
+// Review finding: conflicting equalities (z₀ = 0 and z₀ = 1) or an equality that cannot be
+// factorised must not be reported Converged: the regularised factor returns huge multipliers.
+TEST(SolverActiveSet, ConflictingEqualitiesAreNotConverged) {
+  QpProblem qp;
+  qp.reset(1);
+  qp.setRigidMass(0, 1.0, Mat3::Identity(), Vec3(1, 1, 1));
+  Vec6 e0 = Vec6::Zero();
+  e0[0] = 1.0;
+  qp.addRow(RowType::Equality, 0, e0, -1, Vec6::Zero(), 0.0, 0);
+  qp.addRow(RowType::Equality, 0, e0, -1, Vec6::Zero(), 1.0, 0);
+  qp.finalize();
+  ActiveSetSolver solver;
+  QpSolution sol;
+  const SolveStats st = solver.solve(qp, sol);
+  EXPECT_NE(st.status, SolveStatus::Converged);
+  EXPECT_GT(st.kkt_residual, 1e-3);
+  // A zero equality row with c ≠ 0 (unsatisfiable) is not converged either.
+  QpProblem z;
+  z.reset(1);
+  z.setRigidMass(0, 1.0, Mat3::Identity(), Vec3(1, 1, 1));
+  z.addRow(RowType::Equality, 0, Vec6::Zero(), -1, Vec6::Zero(), 1.0, 0);
+  z.finalize();
+  EXPECT_NE(solver.solve(z, sol).status, SolveStatus::Converged);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Projected Gauss–Seidel against the exact solution.
 

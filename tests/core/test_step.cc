@@ -1160,3 +1160,34 @@ TEST(StepPgs, FiniteAndJointsClosedByProjection) {
 
 }  // namespace
 }  // namespace godhand
+
+namespace godhand {
+namespace {
+
+// Review finding: the contact count rising past what was reserved (64 → 65 → 128 → 300) must grow
+// every per-row buffer, never write past a vector's size (the sanitizer build checks this with
+// _GLIBCXX_ASSERTIONS), and keep the results finite and converged.
+TEST(StepGrowth, RisingContactCountsGrowEveryBuffer) {
+  const HandModel& m = hand16();
+  ClusterStepper s(m, StepParams{});
+  s.reserve(64);
+  std::vector<Contact> base, many;
+  for (int n : {64, 65, 128, 300, 16, 300}) {
+    planeContacts(m, s.poses(), -0.02, 1.0, base);
+    ASSERT_FALSE(base.empty());
+    many.resize(static_cast<size_t>(n));
+    for (int k = 0; k < n; ++k) {
+      many[static_cast<size_t>(k)] = base[static_cast<size_t>(k) % base.size()];
+      many[static_cast<size_t>(k)].key = static_cast<std::uint64_t>(k) + 1;
+    }
+    std::vector<Pose> T = s.poses();
+    for (auto& t : T) t.p.z() -= 0.001;
+    const StepReport& r = s.step({T.data(), nullptr, many.data(), n});
+    EXPECT_EQ(r.contact_rows, n);
+    EXPECT_NE(r.solve.status, SolveStatus::NumericalFailure);
+    for (const Pose& X : s.poses()) ASSERT_TRUE(isValidPose(X, 1e-9));
+  }
+}
+
+}  // namespace
+}  // namespace godhand
