@@ -205,8 +205,8 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
     X_W_ = X_prev_;
     report_.flags |= kFlagStateKept;
     ++counters_.states_kept;
+    report_.joint_errors = jointErrors(model_, X_W_.data());  // project() measured the discarded poses
   }
-  report_.joint_errors = jointErrors(model_, X_W_.data());
   if (params_.projection_iterations > 0 &&
       std::max(report_.joint_errors.gap, report_.joint_errors.lock) > 1e3 * params_.projection_tolerance)
     report_.flags |= kFlagProjectionIncomplete;
@@ -243,9 +243,11 @@ int ClusterStepper::project(const StepInput& in) {
   const int first_contact = report_.equality_rows + report_.limit_rows;
   bool pull = !anyActiveFrom(first_contact, qp_, sol_);
   int it = 0;
-  for (; it < params_.projection_iterations; ++it) {
-    const JointErrors e = jointErrors(model_, X_W_.data());
-    if (std::max({e.gap, e.lock, e.limit}) <= params_.projection_tolerance) break;
+  for (;; ++it) {
+    // The errors of the current poses: the report's figures when the loop ends here.
+    report_.joint_errors = jointErrors(model_, X_W_.data());
+    const JointErrors& e = report_.joint_errors;
+    if (it >= params_.projection_iterations || std::max({e.gap, e.lock, e.limit}) <= params_.projection_tolerance) break;
     proj_.reset(n);
     assembleMasses(proj_, X_W_);
     pull = pull && it < kGoalIterations;
@@ -269,7 +271,7 @@ int ClusterStepper::project(const StepInput& in) {
     }
     proj_.finalize();
     const SolveStats s = exact_.solve(proj_, proj_sol_);
-    if (s.status == SolveStatus::NumericalFailure) break;
+    if (s.status == SolveStatus::NumericalFailure) break;  // poses unchanged: errors still current
     if (pull && anyActiveFrom(proj_first_contact, proj_, proj_sol_)) pull = false;
     for (int b = 0; b < n; ++b)
       X_W_[static_cast<size_t>(b)] = poseUpdate(X_W_[static_cast<size_t>(b)], proj_sol_.z[static_cast<size_t>(b)], 1.0);

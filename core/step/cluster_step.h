@@ -115,7 +115,7 @@ class ClusterStepper {
 
  private:
   void assembleMasses(QpProblem& qp, const std::vector<Pose>& X) const;
-  int project(const StepInput& in);
+  int project(const StepInput& in);  // also sets report_.joint_errors of the final poses
   void rememberWarmStart();
 
   const HandModel& model_;
