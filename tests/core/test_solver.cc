@@ -367,59 +367,30 @@ TEST(SolverActiveSet, RandomProblemsSatisfyKkt) {
   QpSolution sol;
   CategoryStats generic{"generic"}, redundant{"redundant"}, duplicated{"duplicated"}, near{"near-parallel 1e-8"},
       many{"200 rows on 2 bodies"}, eq_only{"equalities only"};
+  // Categories in a fixed order (the random sequence, hence every problem, is reproducible).
+  // generic: m_E < 6N, m_I up to 3·6N.
+  struct Category {
+    int count;
+    CategoryStats* stats;
+    const char* label;
+    void (*options)(Rng&, GenOptions&);
+  };
+  const Category categories[] = {
+      {2000, &generic, "generic", [](Rng& r, GenOptions& o) { o.N = r.integer(1, 8); o.num_eq = r.integer(0, 6 * o.N - 1); o.num_ineq = r.integer(0, 18 * o.N); }},
+      {300, &eq_only, "equalities only", [](Rng& r, GenOptions& o) { o.N = r.integer(1, 8); o.num_eq = r.integer(0, 6 * o.N); o.num_ineq = 0; o.num_redundant = r.integer(0, 4); }},  // redundant = dependent, consistent equality combinations
+      {500, &redundant, "redundant", [](Rng& r, GenOptions& o) { o.N = r.integer(1, 6); o.num_eq = r.integer(0, 3 * o.N); o.num_ineq = r.integer(1, 12 * o.N); o.num_redundant = r.integer(1, 3 * o.N); }},
+      {500, &duplicated, "duplicated", [](Rng& r, GenOptions& o) { o.N = r.integer(1, 6); o.num_eq = r.integer(0, 3 * o.N); o.num_ineq = r.integer(1, 12 * o.N); o.num_duplicates = r.integer(1, 4 * o.N); }},
+      {500, &near, "near-parallel", [](Rng& r, GenOptions& o) { o.N = r.integer(1, 6); o.num_eq = r.integer(0, 3 * o.N); o.num_ineq = r.integer(1, 12 * o.N); o.num_near_parallel = r.integer(1, 3 * o.N); o.near_eps = 1e-8; }},
+      {200, &many, "200 rows", [](Rng& r, GenOptions& o) { o.N = 2; o.num_eq = r.integer(0, 5); o.num_ineq = 200; }},
+  };
   const auto t0 = std::chrono::steady_clock::now();
-  for (int i = 0; i < 2000; ++i) {  // generic: m_E < 6N, m_I up to 3·6N
-    GenOptions o;
-    o.N = rng.integer(1, 8);
-    o.num_eq = rng.integer(0, 6 * o.N - 1);
-    o.num_ineq = rng.integer(0, 18 * o.N);
-    const TProblem P = generate(rng, o);
-    ASSERT_NO_FATAL_FAILURE(solveAndCheck(P, solver, qp, sol, generic, "generic"));
-  }
-  for (int i = 0; i < 300; ++i) {
-    GenOptions o;
-    o.N = rng.integer(1, 8);
-    o.num_eq = rng.integer(0, 6 * o.N);
-    o.num_ineq = 0;
-    o.num_redundant = rng.integer(0, 4);  // equality combinations: dependent, consistent
-    const TProblem P = generate(rng, o);
-    ASSERT_NO_FATAL_FAILURE(solveAndCheck(P, solver, qp, sol, eq_only, "equalities only"));
-  }
-  for (int i = 0; i < 500; ++i) {
-    GenOptions o;
-    o.N = rng.integer(1, 6);
-    o.num_eq = rng.integer(0, 3 * o.N);
-    o.num_ineq = rng.integer(1, 12 * o.N);
-    o.num_redundant = rng.integer(1, 3 * o.N);
-    const TProblem P = generate(rng, o);
-    ASSERT_NO_FATAL_FAILURE(solveAndCheck(P, solver, qp, sol, redundant, "redundant"));
-  }
-  for (int i = 0; i < 500; ++i) {
-    GenOptions o;
-    o.N = rng.integer(1, 6);
-    o.num_eq = rng.integer(0, 3 * o.N);
-    o.num_ineq = rng.integer(1, 12 * o.N);
-    o.num_duplicates = rng.integer(1, 4 * o.N);
-    const TProblem P = generate(rng, o);
-    ASSERT_NO_FATAL_FAILURE(solveAndCheck(P, solver, qp, sol, duplicated, "duplicated"));
-  }
-  for (int i = 0; i < 500; ++i) {
-    GenOptions o;
-    o.N = rng.integer(1, 6);
-    o.num_eq = rng.integer(0, 3 * o.N);
-    o.num_ineq = rng.integer(1, 12 * o.N);
-    o.num_near_parallel = rng.integer(1, 3 * o.N);
-    o.near_eps = 1e-8;
-    const TProblem P = generate(rng, o);
-    ASSERT_NO_FATAL_FAILURE(solveAndCheck(P, solver, qp, sol, near, "near-parallel"));
-  }
-  for (int i = 0; i < 200; ++i) {
-    GenOptions o;
-    o.N = 2;
-    o.num_eq = rng.integer(0, 5);
-    o.num_ineq = 200;
-    const TProblem P = generate(rng, o);
-    ASSERT_NO_FATAL_FAILURE(solveAndCheck(P, solver, qp, sol, many, "200 rows"));
+  for (const Category& c : categories) {
+    for (int i = 0; i < c.count; ++i) {
+      GenOptions o;
+      c.options(rng, o);
+      const TProblem P = generate(rng, o);
+      ASSERT_NO_FATAL_FAILURE(solveAndCheck(P, solver, qp, sol, *c.stats, c.label)) << c.label << " #" << i;
+    }
   }
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   for (const CategoryStats* c : {&generic, &eq_only, &redundant, &duplicated, &near, &many}) c->print();
