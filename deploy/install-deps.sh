@@ -8,7 +8,7 @@ pkgs=(
   libeigen3-dev libbullet-dev libfcl-dev libccd-dev
   libprotobuf-dev protobuf-compiler
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools default-jre-headless
-  libgtest-dev libgmock-dev libbenchmark-dev
+  libgtest-dev libgmock-dev nlohmann-json3-dev libbenchmark-dev
 )
 missing=()
 for p in "${pkgs[@]}"; do
