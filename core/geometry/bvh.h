@@ -7,8 +7,13 @@
 // w(p) = Σ_t Ω_t(p) / 4π (Jacobson et al. 2013), ≈ 1 inside and ≈ 0 outside a closed,
 // outward-oriented mesh, and still a usable vote (> 0.5 = inside) for meshes with small holes.
 // Far BVH nodes use the dipole approximation of Barill et al. 2018; near ones are exact.
+// A node of area-weighted centre c and radius R is far from p when |c − p| > β R (β = 2); then,
+// with r = c − p and Ω_t ≈ A_t·(x_t − p)/|x_t − p|³ expanded about c to second order,
+//   Ω_node ≈ N·r/|r|³ + tr(M)/|r|³ − 3 rᵀ M r/|r|⁵,   N = Σ A_t,  M = Σ (x_t − c) A_tᵀ.
+// Near nodes sum the exact solid angles (Van Oosterom & Strackee 1983).
 #pragma once
 
+#include <array>
 #include <vector>
 
 #include "geometry/distance.h"
@@ -42,6 +47,19 @@ class MeshBvh {
   /// Appends every triangle within max_distance of the shape at X_MB, with its closest points.
   void near(const Shape& shape, const Pose& X_MB, double max_distance, std::vector<NearTriangle>* out) const;
 
+  /// One step of directional conservative advancement (sweep.h) for the shape at X_MB moving
+  /// with constant velocity over the step: origin by dp_M, rotation θ_M (rad, frame M), per unit
+  /// time. Returns the largest Δ ≤ horizon such that no triangle can come within eta of the shape
+  /// during [0, Δ]: for each triangle, Δ_t = (d_t − η) / rate_t, where d_t is its distance now
+  /// and rate_t = max(0, w·dp + ρ_c |w × θ|) bounds how fast the separation along the fixed
+  /// direction w from the shape towards the triangle can shrink (ρ_c = coreBoundingRadius). BVH
+  /// nodes are skipped with the same bound on their boxes. *limiting gets the triangle that sets
+  /// Δ with its closest points now (triangle −1 if Δ = horizon). `hint` (a triangle index, e.g.
+  /// the previous step's limiting one) is evaluated first to tighten the pruning; it does not
+  /// change the result. Never throws, allocates nothing.
+  double advancementStep(const Shape& shape, const Pose& X_MB, const Vec3& dp_M, const Vec3& theta_M, double eta,
+                         double horizon, NearTriangle* limiting, int hint = -1) const;
+
   /// Generalized winding number at p_M (see above).
   double windingNumber(const Vec3& p_M) const;
   bool inside(const Vec3& p_M) const { return windingNumber(p_M) > 0.5; }
@@ -56,11 +74,15 @@ class MeshBvh {
     Vec3 dipole_normal = Vec3::Zero();  ///< Σ area-weighted normals (½ (b−a)×(c−a))
     double radius = 0.0;                ///< of the node's triangles around dipole_centre
   };
+  struct Impl;  ///< build and traversal helpers (bvh.cc)
   TriangleMesh mesh_;
   Aabb bounds_;
-  std::vector<Node> nodes_;
+  std::vector<Node> nodes_;       ///< depth-first: an inner node's left child follows it
   std::vector<int> order_;  ///< triangle indices, grouped by leaf
-  std::vector<Aabb> tri_boxes_;
+  std::vector<Aabb> tri_boxes_;   ///< per triangle, indexed like order_ (leaf-contiguous)
+  std::vector<std::array<Vec3, 3>> tri_vertices_;  ///< corners, indexed like order_
+  /// Per node: second-order far-field moment Σ_t (x_t − c) A_tᵀ (x_t centroid, A_t area vector).
+  std::vector<Mat3> dipole_moment_;
 };
 
 }  // namespace godhand::geo

@@ -9,7 +9,20 @@
 // μ = |p1 − p0| + |θ| ρ over the whole step, so the distance d(t) shrinks at most at rate μ and
 // t_{k+1} = t_k + (d(t_k) − η)/μ never steps past the first time the distance reaches η.
 //
-// Guarantee (tested against fine sampling with FCL's exact distances): the returned toc is
+// Directional advancement (SweepParams::directional, the default) takes larger, still
+// conservative steps, which is what lets a body resting ~0.1 mm above a surface slide along it in a
+// few iterations instead of ~(slide length)/(d − η). The shape distance is the core distance − r,
+// and the separation of two sets along any fixed unit direction w is ≤ their distance. A core
+// point x moves with velocity Δp + θ × (x − p(t)), whose component along w is at most
+//   rate(w) = w·Δp + ρ_c |w × θ|,   ρ_c = coreBoundingRadius ≤ ρ,   rate(w) ≤ μ.
+// For each triangle (convex) with separating direction w_t from its closest points at t_k (core
+// distance d_t), no point of it comes within η before t_k + (d_t − r − η)/rate(w_t); BVH boxes
+// get the same bound along their first-order separating direction (MeshBvh::advancementStep).
+// The step is the minimum over all triangles, so the guarantee below holds unchanged; since
+// rate(w) ≤ μ each step is at least the plain one.
+//
+// Guarantee (tested against fine sampling of the motion with exact brute-force / BVH distances,
+// tests/geometry/test_sweep.cc): the returned toc is
 // never later than the first time the shape touches the mesh, and d(s) ≥ η − tolerance for
 // every s ≤ toc. Stop distance η = min(stop_distance, ½ d(0)) so that a body already resting
 // close to a surface can still slide along it.
@@ -21,8 +34,11 @@ namespace godhand::geo {
 
 struct SweepParams {
   double stop_distance = 2.5e-5;  ///< η, m: stop this far from the surface
-  double tolerance = 1e-6;        ///< CA stops once within η + tolerance, m
+  double tolerance = 1e-6;        ///< CA stops once within η + tolerance, m (directional: once
+                                  ///< the triangle limiting the step is)
   int max_iterations = 100;       ///< then the toc reached so far is returned (conservative)
+  /// Directional per-triangle bounds (see above); false: the plain global-μ advancement.
+  bool directional = true;
 };
 
 struct SweepResult {
@@ -30,7 +46,9 @@ struct SweepResult {
   bool hit = false;            ///< the motion reaches the stop distance before t = 1
   bool started_inside = false; ///< d(0) ≤ 0: nothing can be said; toc = 0
   int iterations = 0;
-  double distance = 0.0;       ///< d(toc), m (+inf if nothing within reach)
+  double distance = 0.0;       ///< d(toc), m (+inf if nothing within reach: μ + η at toc = 1)
+  bool capped = false;         ///< max_iterations ran out: toc is the conservative time reached
+                               ///< (< 1), reported with hit = true so that the caller stops there
 };
 
 /// Pose at fraction t of the motion X0 → X1 (see above).

@@ -9,6 +9,13 @@
 namespace godhand {
 
 namespace {
+
+// A contact the step can use: its body exists, every number is finite, its normal is roughly unit.
+bool validContact(const Contact& c, int num_bodies) {
+  const double nn = c.n_W.norm();
+  return c.body >= 0 && c.body < num_bodies && c.p_W.allFinite() && c.n_W.allFinite() && std::isfinite(c.distance) &&
+         nn > 0.5 && nn < 2.0;
+}
 using Clock = std::chrono::steady_clock;
 double micros(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::micro>(b - a).count();
@@ -34,6 +41,8 @@ void StepParams::validate() const {
   require(pgs.sweeps >= 1, "pgs.sweeps must be >= 1");
   require(finitePositive(pgs.relaxation) && pgs.relaxation < 2.0, "pgs.relaxation must be in (0, 2)");
   require(projection_iterations >= 0 && projection_iterations <= 100, "projection_iterations must be in [0, 100]");
+  require(max_step_translation > 0, "max_step_translation must be > 0 (+inf = no clamp)");
+  require(max_step_rotation > 0, "max_step_rotation must be > 0 (+inf = no clamp)");
   require(finitePositive(projection_tolerance), "projection_tolerance must be > 0");
   require(finitePositive(target_unit_tolerance) && target_unit_tolerance < 0.5, "target_unit_tolerance must be in (0, 0.5)");
 }
@@ -124,6 +133,24 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
     else
       zu.setZero();
   }
+  // Motion clamp: one scale for the whole cluster (keeps joint-consistent goals consistent) so
+  // that no body is asked to move more than max_step_translation / max_step_rotation in one
+  // step. The contact rows are linear in the motion; their error grows with the square of the
+  // rotation, and a target far inside an object would otherwise ask for it every step.
+  {
+    double scale = 1.0;
+    const double dt2k = dt2;
+    for (int b = 0; b < n; ++b) {
+      const Vec6& zu = qp_.unconstrained(b);
+      const double trans = zu.head<3>().norm() * dt2k, rot = zu.tail<3>().norm() * dt2k;
+      if (trans > params_.max_step_translation) scale = std::min(scale, params_.max_step_translation / trans);
+      if (rot > params_.max_step_rotation) scale = std::min(scale, params_.max_step_rotation / rot);
+    }
+    if (scale < 1.0) {
+      for (int b = 0; b < n; ++b) qp_.unconstrained(b) *= scale;
+      report_.motion_scale = scale;
+    }
+  }
   const auto t1 = Clock::now();
 
   // Assembly: masses at the current orientations, joint rows, limit rows, contact rows.
@@ -137,13 +164,11 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
     contact_row_[static_cast<size_t>(i)] = -1;
     lambda_contacts_[static_cast<size_t>(i)] = 0.0;
     Contact c = in.contacts[i];
-    const double nn = c.n_W.norm();
-    if (c.body < 0 || c.body >= n || !c.p_W.allFinite() || !c.n_W.allFinite() || !std::isfinite(c.distance) ||
-        !(nn > 0.5 && nn < 2.0)) {
+    if (!validContact(c, n)) {
       ++report_.rejected_contacts;
       continue;
     }
-    c.n_W /= nn;
+    c.n_W /= c.n_W.norm();
     contact_row_[static_cast<size_t>(i)] = qp_.numRows();
     addContactRow(qp_, c, X_W_[static_cast<size_t>(c.body)], params_.rows);
     ++report_.contact_rows;
@@ -196,7 +221,7 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
     X_W_[i] = poseUpdate(X_W_[i], sol_.z[i], dt2);
   }
   const auto t4 = Clock::now();
-  report_.projection_iterations = project(in);
+  report_.projection_iterations = project(in, true, X_prev_, false);
   const auto t5 = Clock::now();
 
   bool finite = true;
@@ -229,7 +254,23 @@ bool anyActiveFrom(int first, const QpProblem& qp, const QpSolution& sol) {
 constexpr int kGoalIterations = 3;
 }  // namespace
 
-int ClusterStepper::project(const StepInput& in) {
+void ClusterStepper::interpolate(double toc) {
+  if (!(toc < 1.0)) return;
+  toc = std::max(0.0, toc);
+  for (size_t b = 0; b < X_W_.size(); ++b)
+    X_W_[b] = poseUpdate(X_prev_[b], poseDifference(X_W_[b], X_prev_[b]), toc);
+  report_.joint_errors = jointErrors(model_, X_W_.data());
+}
+
+void ClusterStepper::reproject(const Contact* contacts, int num_contacts) {
+  X_ref_ = X_W_;
+  StepInput in;
+  in.contacts = contacts;
+  in.num_contacts = num_contacts;
+  report_.projection_iterations += project(in, false, X_ref_, true);
+}
+
+int ClusterStepper::project(const StepInput& in, bool allow_pull, const std::vector<Pose>& X_ref, bool fresh) {
   // Position-level Newton iterations on the same rows: Δt = 1, β = 1. While no contact carries
   // force, z_u = G ⊖ X (towards the unconstrained goal; at most kGoalIterations), otherwise
   // z_u = 0: the M-smallest displacement that closes the joints, brings violated limits back to
@@ -241,13 +282,28 @@ int ClusterStepper::project(const StepInput& in) {
   pp.contact_beta = 1.0;
   const int n = static_cast<int>(model_.bodies.size());
   const int first_contact = report_.equality_rows + report_.limit_rows;
-  bool pull = !anyActiveFrom(first_contact, qp_, sol_);
+  bool pull = allow_pull && !anyActiveFrom(first_contact, qp_, sol_);
   int it = 0;
   for (;; ++it) {
     // The errors of the current poses: the report's figures when the loop ends here.
     report_.joint_errors = jointErrors(model_, X_W_.data());
     const JointErrors& e = report_.joint_errors;
-    if (it >= params_.projection_iterations || std::max({e.gap, e.lock, e.limit}) <= params_.projection_tolerance) break;
+    // Contacts moved further in than allowed (the rows are linear in the rotation; the rigid
+    // motion of the contact point is not): min(d_ref, δ) − d_now.
+    double contact_violation = 0.0;
+    const size_t nc = fresh ? static_cast<size_t>(std::max(0, in.num_contacts)) : contact_row_.size();
+    for (size_t i = 0; i < nc; ++i) {
+      const Contact& c = in.contacts[i];
+      if (fresh ? !validContact(c, n) : contact_row_[i] < 0) continue;
+      const size_t b = static_cast<size_t>(c.body);
+      const Vec3 p_now = X_W_[b] * (X_ref[b].inverse() * c.p_W);
+      const double d_now = c.distance + c.n_W.normalized().dot(p_now - c.p_W);
+      contact_violation = std::max(contact_violation, std::min(c.distance, pp.margin) - d_now);
+    }
+    report_.contact_violation = contact_violation;
+    if (it >= params_.projection_iterations ||
+        std::max({e.gap, e.lock, e.limit, contact_violation}) <= params_.projection_tolerance)
+      break;
     proj_.reset(n);
     assembleMasses(proj_, X_W_);
     pull = pull && it < kGoalIterations;
@@ -257,13 +313,14 @@ int ClusterStepper::project(const StepInput& in) {
     addJointRows(proj_, model_, X_W_.data(), pp);
     addLimitRows(proj_, model_, X_W_.data(), pull ? proj_.unconstrainedData() : nullptr, pp);
     const int proj_first_contact = proj_.numRows();
-    for (size_t i = 0; i < contact_row_.size(); ++i) {
-      if (contact_row_[i] < 0) continue;
+    for (size_t i = 0; i < nc; ++i) {
       const Contact& c = in.contacts[i];
+      if (fresh ? !validContact(c, n) : contact_row_[i] < 0) continue;
       const size_t b = static_cast<size_t>(c.body);
       const Vec3 n_W = c.n_W.normalized();
-      // The contact point moves rigidly with its body; the scene object does not move here.
-      const Vec3 p_now = X_W_[b] * (X_prev_[b].inverse() * c.p_W);
+      // The contact point moves rigidly with its body (from the pose X_ref it was found at);
+      // the scene object does not move here.
+      const Vec3 p_now = X_W_[b] * (X_ref[b].inverse() * c.p_W);
       const double d_now = c.distance + n_W.dot(p_now - c.p_W);
       Vec6 J;
       J << n_W, (p_now - X_W_[b].p).cross(n_W);

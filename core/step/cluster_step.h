@@ -26,6 +26,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "model/hand_model.h"
@@ -46,6 +47,11 @@ struct StepParams {
   ActiveSetSettings exact;
   PgsSettings pgs;
   int projection_iterations = 8;    ///< cap; 0 disables the projection (it stops when converged)
+  /// Motion clamp (m, rad; +inf = off): the coupling asks no body to move or turn further per
+  /// step (one scale for the whole cluster). Contact rows are linear in the rotation, so their
+  /// error grows with its square; the pipeline sets 0.03 m / 0.25 rad.
+  double max_step_translation = std::numeric_limits<double>::infinity();
+  double max_step_rotation = std::numeric_limits<double>::infinity();
   double projection_tolerance = 1e-10;  ///< m / rad: joints and limits closed to this
   double target_unit_tolerance = 1e-3;  ///< |‖q‖ − 1| above this rejects a target
 
@@ -73,6 +79,8 @@ struct StepReport {
   int rows = 0, equality_rows = 0, limit_rows = 0, contact_rows = 0;
   int projection_iterations = 0;
   JointErrors joint_errors;         ///< after the step
+  double contact_violation = 0.0;   ///< m: contact points further in than allowed after the projection
+  double motion_scale = 1.0;        ///< < 1 when the motion clamp scaled the coupling
   std::uint32_t flags = 0;
   int rejected_targets = 0, rejected_contacts = 0;
 };
@@ -102,6 +110,17 @@ class ClusterStepper {
 
   const StepReport& step(const StepInput& input);
 
+  /// Continuous-collision clipping (paper §6.3, Eqs. 29–30): moves every body back to the
+  /// fraction `toc` ∈ [0, 1] of the last step's motion, X(t) = X_prev ⊕ t (X ⊖ X_prev) (the
+  /// motion the sweep assumed). Interpolating each body on its own opens the joints by O(θ²) of
+  /// the step's rotation θ: follow with reproject(). toc ≥ 1: no-op.
+  void interpolate(double toc);
+  /// The pure projection (no pull towards the goal) from the current poses, against contacts
+  /// found at the current poses (Algorithm 1's regenerated contacts): joints re-closed and
+  /// limits restored by the M-smallest displacement that moves no contact further in than it
+  /// is. Updates lastReport().joint_errors and adds to its projection_iterations.
+  void reproject(const Contact* contacts, int num_contacts);
+
   const std::vector<Pose>& poses() const { return X_W_; }
   const HandModel& model() const { return model_; }
   const StepParams& params() const { return params_; }
@@ -115,12 +134,14 @@ class ClusterStepper {
 
  private:
   void assembleMasses(QpProblem& qp, const std::vector<Pose>& X) const;
-  int project(const StepInput& in);  // also sets report_.joint_errors of the final poses
+  // Also sets report_.joint_errors of the final poses. Contacts were found at poses X_ref; fresh:
+  // use every valid contact (else only those the last step added as rows).
+  int project(const StepInput& in, bool allow_pull, const std::vector<Pose>& X_ref, bool fresh);
   void rememberWarmStart();
 
   const HandModel& model_;
   StepParams params_;
-  std::vector<Pose> X_W_, X_prev_, last_target_, goal_;
+  std::vector<Pose> X_W_, X_prev_, X_ref_, last_target_, goal_;
   std::vector<unsigned char> has_last_target_;
   QpProblem qp_, proj_;
   QpSolution sol_, proj_sol_;

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Generate the godhand model files (protobuf text format, schema idl/hand_model.proto).
 
-Writes hand16_right.pbtxt, hand6_right.pbtxt and tool1.pbtxt next to this script.
+Writes hand16_right.pbtxt, hand6_right.pbtxt, their mirror images hand16_left.pbtxt and
+hand6_left.pbtxt, and tool1.pbtxt next to this script.
 Standard library only, deterministic, silent on success (an assertion fails otherwise).
 Conventions (SI units, model frame = palm frame, +y distal, +z dorsal, x = y cross z):
 each phalanx is a capsule along its local z (proximal -> distal), origin at the capsule
@@ -129,6 +130,44 @@ def fingertips(bodies16):
             tips.append(body(finger + ".tip", ("sphere", r), sphere_mass(r), tip, b["quat"]))
     return tips
 
+# ---------------------------------------------------------------- left hand (mirror image)
+# The left hand is the right hand mirrored in the model's x (thumb on +x). A mirror M = diag(-1,
+# 1, 1) turns every right-handed frame (x, y, z) into a left-handed one (Mx, My, Mz); flipping its
+# x axis makes it right-handed again: (-Mx, My, Mz). So every body and joint frame keeps z along
+# the bone (proximal -> distal) and y dorsal, and x = y cross z stays the flexion axis with the same
+# sign: positive flexion still curls toward the palm (-z of the palm frame). In formulas, with
+# F = diag(-1, 1, 1): p -> F p, R -> F R F (quaternion (w, x, y, z) -> (w, x, -y, -z)); a vector
+# given in a body frame maps to F v, except a joint x axis, which maps to -F v. Angle 2 (abduction
+# about the child's y) changes sign under the mirror, so its limits [lo, hi] become [-hi, -lo].
+def mirror_vec(v): return clean((-v[0], v[1], v[2]))
+def mirror_axis(v): return clean((v[0], -v[1], -v[2]))
+def mirror_quat(q): return clean((q[0], q[1], -q[2], -q[3]))
+
+def mirror_bodies(bodies):
+    return [dict(b, pos=mirror_vec(b["pos"]), quat=mirror_quat(b["quat"])) for b in bodies]
+
+def mirror_joints(joints):
+    out = []
+    for j in joints:
+        m = dict(j, ap=mirror_vec(j["ap"]), ac=mirror_vec(j["ac"]), xp=mirror_axis(j["xp"]),
+                 xc=mirror_axis(j["xc"]), zp=mirror_vec(j["zp"]), zc=mirror_vec(j["zc"]))
+        m["limits"] = [(a, lo, hi) if a == 1 else (a, clean((-hi,))[0], clean((-lo,))[0])
+                       for a, lo, hi in j["limits"]]
+        out.append(m)
+    return out
+
+def verify_mirror(right, left):
+    """Left = right mirrored in x: positions (x -> -x), frames F R F, thumb on +x."""
+    for r, l in zip(right, left):
+        assert r["name"] == l["name"] and r["segment"] == l["segment"]
+        assert norm(add(l["pos"], scale(mirror_vec(r["pos"]), -1.0))) < 1e-15, l["name"]
+        for k, sign in ((0, -1.0), (1, 1.0), (2, 1.0)):   # body axes: x -> -F x, y -> F y, z -> F z
+            e = tuple(1.0 if i == k else 0.0 for i in range(3))
+            want = scale(mirror_vec(rotate(r["quat"], e)), sign)
+            assert norm(add(rotate(l["quat"], e), scale(want, -1.0))) < 1e-12, (l["name"], k)
+        if l["name"].startswith("thumb"):
+            assert l["pos"][0] > 0.0 and r["pos"][0] < 0.0, l["name"]
+
 # ---------------------------------------------------------------- verification
 def verify(bodies, joints):
     by_name = {b["name"]: b for b in bodies}
@@ -193,6 +232,12 @@ THUMB_NOTE = ("Thumb rest direction (-0.7, 0.7, -0.2) normalised from the CMC at
               "-0.01); roll: its dorsal (nail) axis is palm (-1, 0, 1) made orthogonal to the bone, "
               "so flexion curls it toward the palm (-z) and across it (+x). ")
 
+MIRROR_NOTE = ("Left hand = mirror image in the model's x (thumb on +x) of the right hand: positions "
+               "x -> -x; every body and joint frame mirrored, then its x axis flipped so that it stays "
+               "right-handed with z along the bone, y dorsal and x the flexion axis (positive "
+               "flexion curls toward the palm, -z, in both hands); abduction (angle 2) changes "
+               "sign, so its limits [lo, hi] become [-hi, -lo]. Source: ")
+
 def main():
     here = os.path.dirname(os.path.abspath(__file__))
     bodies, joints = hand16()
@@ -218,6 +263,23 @@ def main():
           "Tip centres are the distal ends of the .3 capsule segments of hand16_right at its "
           "straight, splayed rest pose, with the .3 body orientation; sphere radii 8-9 mm, masses "
           "from volume at 1100 kg/m^3. " + DIMS)
+    lbodies, ljoints = mirror_bodies(bodies), mirror_joints(joints)
+    verify_mirror(bodies, lbodies)
+    write(os.path.join(here, "hand16_left.pbtxt"), "hand16_left",
+          "# 16-body left hand: hand16_right mirrored in the model's x (thumb on +x), every frame\n"
+          "# kept right-handed (x axis flipped after the mirror); same names, limits and masses.\n",
+          lbodies, ljoints, MIRROR_NOTE + "hand16_right. " + DIMS + "Right-hand limits (flexion "
+          "unchanged): MCP flexion 0..90 deg, MCP abduction -15..15 deg, PIP 0..110 deg, DIP "
+          "0..90 deg (" + CITATION + "); thumb (engineering choice): CMC flexion -20..50 deg, "
+          "CMC abduction -30..30 deg, MCP 0..60 deg, IP -10..80 deg.")
+    ltips = fingertips(lbodies)
+    verify_mirror(tips, ltips)
+    write(os.path.join(here, "hand6_left.pbtxt"), "hand6_left",
+          "# 6-body left hand: palm box + 5 fingertip spheres, no joints; hand6_right mirrored in x.\n"
+          "# Fingertip positions = distal capsule tip centres of hand16_left's straight rest pose.\n",
+          [palm()] + ltips, [],
+          MIRROR_NOTE + "hand6_right (six independent God objects, no joints; tip centres are the "
+          "distal ends of the .3 capsules of hand16_left at rest). " + DIMS)
     write(os.path.join(here, "tool1.pbtxt"), "tool1",
           "# 1-body tool: a 0.02 x 0.02 x 0.12 m box, no joints.\n",
           [body("tool", ("box", (0.01, 0.01, 0.06)), 0.2)], [],

@@ -1,0 +1,518 @@
+#include "geometry/bvh.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+namespace godhand::geo {
+namespace {
+
+constexpr int kLeafSize = 4;       ///< leaves hold at most this many triangles
+constexpr int kBins = 16;          ///< binned SAH
+constexpr int kMaxSahDepth = 48;   ///< below this depth: object-median splits (depth ≤ 48 + log2 n)
+constexpr int kStackSize = 256;    ///< traversal stack (≥ 2 × the maximum depth)
+constexpr double kWindingBeta = 2.0;  ///< Barill et al. 2018 accuracy parameter
+constexpr double kPi = 3.14159265358979323846;
+
+double surfaceArea(const Aabb& b) {
+  if (b.empty()) return 0.0;
+  const Vec3 e = b.extent();
+  return 2.0 * (e.x() * e.y() + e.y() * e.z() + e.z() * e.x());
+}
+
+/// The shape's core in frame M, with what the box lower bounds need.
+struct CoreM {
+  ShapeType type = ShapeType::Sphere;
+  Vec3 p0 = Vec3::Zero(), p1 = Vec3::Zero();  ///< segment (sphere: p0 = p1 = centre)
+  Vec3 d = Vec3::Zero();                      ///< p1 − p0
+  double dd = 0.0;                            ///< |d|²
+  Mat3 R_MB = Mat3::Identity();
+  Vec3 e = Vec3::Zero();                      ///< box half extents
+  Aabb box;                                   ///< of the core
+
+  CoreM(const Shape& shape, const Pose& X_MB) : type(shape.type), R_MB(X_MB.q.toRotationMatrix()) {
+    switch (shape.type) {
+      case ShapeType::Sphere:
+        p0 = p1 = X_MB.p;
+        break;
+      case ShapeType::Capsule: {
+        const Vec3 h_M = R_MB.col(2) * shape.half_length;
+        p0 = X_MB.p - h_M;
+        p1 = X_MB.p + h_M;
+        d = p1 - p0;
+        dd = d.squaredNorm();
+        break;
+      }
+      case ShapeType::Box:
+        p0 = p1 = X_MB.p;
+        e = shape.half_extents;
+        break;
+    }
+    if (type == ShapeType::Box) {
+      const Vec3 e_M = R_MB.cwiseAbs() * e;
+      box.lo = p0 - e_M;
+      box.hi = p0 + e_M;
+    } else {
+      box.lo = p0.cwiseMin(p1);
+      box.hi = p0.cwiseMax(p1);
+    }
+  }
+
+  /// Distance f(x) from point x to the core, with the unit gradient u of f at x (zero if x is in
+  /// the core). f is convex, so f(y) ≥ f(x) + u·(y − x) for every y: the lower bounds below.
+  double pointDistance(const Vec3& x, Vec3* u) const {
+    Vec3 w = Vec3::Zero();
+    switch (type) {
+      case ShapeType::Sphere: w = x - p0; break;
+      case ShapeType::Capsule: {
+        const Vec3 v = x - p0;
+        const double s = dd > 0.0 ? std::clamp(v.dot(d) / dd, 0.0, 1.0) : 0.0;
+        w = v - s * d;
+        break;
+      }
+      case ShapeType::Box: {
+        const Vec3 x_B = R_MB.transpose() * (x - p0);
+        w = R_MB * (x_B - x_B.cwiseMax(-e).cwiseMin(e));
+        break;
+      }
+    }
+    const double f = w.norm();
+    if (f > 0.0) *u = w / f;
+    else u->setZero();
+    return f;
+  }
+
+  /// A lower bound of the distance from the core to any point of box b: the larger of the
+  /// box–box gap and the first-order (convexity) bound at the box centre, f(c) − Σ|u_i| e_i.
+  double lowerBound(const Aabb& b) const {
+    const Vec3 gap = (b.lo - box.hi).cwiseMax(box.lo - b.hi).cwiseMax(0.0);
+    const double lb = std::sqrt(gap.squaredNorm());
+    if (type == ShapeType::Sphere) return lb;  // exact point–box distance
+    const Vec3 bc = b.centre();
+    Vec3 u;
+    const double f = pointDistance(bc, &u);
+    return std::max(lb, f - u.cwiseAbs().dot(0.5 * b.extent()));
+  }
+
+  /// First-order lower bound of the core distance to triangle v: f(c) + min_k u·(v_k − c), c the
+  /// centroid (the minimum of a linear function over the triangle is at a corner).
+  double lowerBound(const std::array<Vec3, 3>& v) const {
+    const Vec3 c = (v[0] + v[1] + v[2]) / 3.0;
+    Vec3 u;
+    const double f = pointDistance(c, &u);
+    return f + std::min({u.dot(v[0] - c), u.dot(v[1] - c), u.dot(v[2] - c)});
+  }
+};
+
+/// Solid angle of triangle abc seen from the origin (Van Oosterom & Strackee 1983), positive
+/// when the origin is behind the counter-clockwise face.
+double solidAngle(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const double la = a.norm(), lb = b.norm(), lc = c.norm();
+  const double num = a.dot(b.cross(c));
+  const double den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+  return 2.0 * std::atan2(num, den);
+}
+
+}  // namespace
+
+struct MeshBvh::Impl {
+  /// Builds the subtree over order_[begin, end); returns its node index.
+  static int build(MeshBvh& bvh, int begin, int end, int depth, const std::vector<Vec3>& centroids,
+                   const std::vector<Aabb>& boxes) {
+    const int index = static_cast<int>(bvh.nodes_.size());
+    bvh.nodes_.emplace_back();
+    Aabb box, cbox;
+    for (int i = begin; i < end; ++i) {
+      const int t = bvh.order_[static_cast<size_t>(i)];
+      box.grow(boxes[static_cast<size_t>(t)]);
+      cbox.grow(centroids[static_cast<size_t>(t)]);
+    }
+    fillDipole(bvh, index, begin, end, centroids);
+    bvh.nodes_[static_cast<size_t>(index)].box = box;
+    const int n = end - begin;
+    if (n <= kLeafSize) {
+      bvh.nodes_[static_cast<size_t>(index)].first = begin;
+      bvh.nodes_[static_cast<size_t>(index)].count = n;
+      return index;
+    }
+    int* first = bvh.order_.data() + begin;
+    int* last = bvh.order_.data() + end;
+    int mid = -1;
+    if (depth < kMaxSahDepth) mid = sahSplit(first, last, cbox, centroids, boxes) ;
+    if (mid <= 0 || mid >= n) {
+      int axis = 0;
+      cbox.extent().maxCoeff(&axis);
+      mid = n / 2;
+      std::nth_element(first, first + mid, last, [&](int x, int y) {
+        return centroids[static_cast<size_t>(x)][axis] < centroids[static_cast<size_t>(y)][axis];
+      });
+    }
+    const int left = build(bvh, begin, begin + mid, depth + 1, centroids, boxes);
+    const int right = build(bvh, begin + mid, end, depth + 1, centroids, boxes);
+    Node& node = bvh.nodes_[static_cast<size_t>(index)];
+    node.first = left;
+    node.right = right;
+    node.count = 0;
+    return index;
+  }
+
+  /// Binned SAH over the three axes; partitions [first, last) and returns the left count, or −1.
+  static int sahSplit(int* first, int* last, const Aabb& cbox, const std::vector<Vec3>& centroids,
+                      const std::vector<Aabb>& boxes) {
+    double best_cost = std::numeric_limits<double>::infinity();
+    int best_axis = -1, best_split = -1;
+    const Vec3 ext = cbox.extent();
+    for (int axis = 0; axis < 3; ++axis) {
+      if (!(ext[axis] > 0.0)) continue;
+      const double scale = kBins / ext[axis];
+      Aabb bin_box[kBins];
+      int bin_count[kBins] = {};
+      for (int* it = first; it != last; ++it) {
+        const auto t = static_cast<size_t>(*it);
+        const int b = std::min(kBins - 1, static_cast<int>((centroids[t][axis] - cbox.lo[axis]) * scale));
+        bin_box[b].grow(boxes[t]);
+        ++bin_count[b];
+      }
+      double right_area[kBins];
+      int right_count[kBins];
+      Aabb acc;
+      int cnt = 0;
+      for (int b = kBins - 1; b > 0; --b) {
+        acc.grow(bin_box[b]);
+        cnt += bin_count[b];
+        right_area[b] = surfaceArea(acc);
+        right_count[b] = cnt;
+      }
+      acc = Aabb{};
+      cnt = 0;
+      for (int b = 0; b < kBins - 1; ++b) {
+        acc.grow(bin_box[b]);
+        cnt += bin_count[b];
+        if (cnt == 0 || right_count[b + 1] == 0) continue;
+        const double cost = surfaceArea(acc) * cnt + right_area[b + 1] * right_count[b + 1];
+        if (cost < best_cost) {
+          best_cost = cost;
+          best_axis = axis;
+          best_split = b + 1;
+        }
+      }
+    }
+    if (best_axis < 0) return -1;
+    const double scale = kBins / ext[best_axis];
+    int* mid = std::partition(first, last, [&](int t) {
+      const int b = std::min(kBins - 1,
+                             static_cast<int>((centroids[static_cast<size_t>(t)][best_axis] - cbox.lo[best_axis]) * scale));
+      return b < best_split;
+    });
+    return static_cast<int>(mid - first);
+  }
+
+  /// Area-weighted centroid, summed area vector and radius of the node's triangles.
+  static void fillDipole(MeshBvh& bvh, int index, int begin, int end, const std::vector<Vec3>& centroids) {
+    Vec3 normal = Vec3::Zero(), weighted = Vec3::Zero(), plain = Vec3::Zero();
+    double area = 0.0;
+    for (int i = begin; i < end; ++i) {
+      const int t = bvh.order_[static_cast<size_t>(i)];
+      const Vec3 a = bvh.mesh_.vertex(t, 0), b = bvh.mesh_.vertex(t, 1), c = bvh.mesh_.vertex(t, 2);
+      const Vec3 an = 0.5 * (b - a).cross(c - a);
+      const double ar = an.norm();
+      normal += an;
+      weighted += ar * centroids[static_cast<size_t>(t)];
+      plain += centroids[static_cast<size_t>(t)];
+      area += ar;
+    }
+    const Vec3 centre = area > 0.0 ? Vec3(weighted / area) : Vec3(plain / (end - begin));
+    double radius2 = 0.0;
+    for (int i = begin; i < end; ++i) {
+      const int t = bvh.order_[static_cast<size_t>(i)];
+      for (int k = 0; k < 3; ++k) radius2 = std::max(radius2, (bvh.mesh_.vertex(t, k) - centre).squaredNorm());
+    }
+    Mat3 moment = Mat3::Zero();
+    for (int i = begin; i < end; ++i) {
+      const int t = bvh.order_[static_cast<size_t>(i)];
+      const Vec3 a = bvh.mesh_.vertex(t, 0), b = bvh.mesh_.vertex(t, 1), c = bvh.mesh_.vertex(t, 2);
+      moment += (centroids[static_cast<size_t>(t)] - centre) * (0.5 * (b - a).cross(c - a)).transpose();
+    }
+    if (bvh.dipole_moment_.size() <= static_cast<size_t>(index)) bvh.dipole_moment_.resize(static_cast<size_t>(index) + 1);
+    bvh.dipole_moment_[static_cast<size_t>(index)] = moment;
+    Node& node = bvh.nodes_[static_cast<size_t>(index)];
+    node.dipole_centre = centre;
+    node.dipole_normal = normal;
+    node.radius = std::sqrt(radius2);
+  }
+};
+
+MeshBvh::MeshBvh(TriangleMesh mesh) : mesh_(std::move(mesh)) {
+  if (mesh_.triangles.empty()) throw std::invalid_argument("MeshBvh: the mesh has no triangles");
+  const int nv = static_cast<int>(mesh_.vertices.size());
+  for (size_t v = 0; v < mesh_.vertices.size(); ++v) {
+    if (!mesh_.vertices[v].allFinite())
+      throw std::invalid_argument("MeshBvh: vertex " + std::to_string(v) + " is not finite");
+  }
+  for (size_t t = 0; t < mesh_.triangles.size(); ++t) {
+    for (int k = 0; k < 3; ++k) {
+      const int v = mesh_.triangles[t][static_cast<size_t>(k)];
+      if (v < 0 || v >= nv)
+        throw std::invalid_argument("MeshBvh: triangle " + std::to_string(t) + " has vertex index " + std::to_string(v) +
+                                    " out of range [0, " + std::to_string(nv) + ")");
+    }
+  }
+  const int n = mesh_.triangleCount();
+  std::vector<Aabb> boxes(static_cast<size_t>(n));
+  std::vector<Vec3> centroids(static_cast<size_t>(n));
+  for (int t = 0; t < n; ++t) {
+    Aabb b;
+    for (int k = 0; k < 3; ++k) b.grow(mesh_.vertex(t, k));
+    boxes[static_cast<size_t>(t)] = b;
+    centroids[static_cast<size_t>(t)] = (mesh_.vertex(t, 0) + mesh_.vertex(t, 1) + mesh_.vertex(t, 2)) / 3.0;
+  }
+  order_.resize(static_cast<size_t>(n));
+  std::iota(order_.begin(), order_.end(), 0);
+  nodes_.reserve(static_cast<size_t>(2 * (n / 2 + 1)));
+  dipole_moment_.reserve(nodes_.capacity());
+  Impl::build(*this, 0, n, 0, centroids, boxes);
+  tri_boxes_.resize(static_cast<size_t>(n));
+  tri_vertices_.resize(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    const int t = order_[static_cast<size_t>(i)];
+    tri_boxes_[static_cast<size_t>(i)] = boxes[static_cast<size_t>(t)];
+    tri_vertices_[static_cast<size_t>(i)] = {mesh_.vertex(t, 0), mesh_.vertex(t, 1), mesh_.vertex(t, 2)};
+  }
+  bounds_ = nodes_.front().box;
+}
+
+void MeshBvh::trianglesOverlapping(const Aabb& box_M, std::vector<int>* out) const {
+  if (nodes_.empty() || box_M.empty()) return;
+  int stack[kStackSize];
+  int sp = 0;
+  stack[sp++] = 0;
+  while (sp > 0) {
+    const Node& node = nodes_[static_cast<size_t>(stack[--sp])];
+    if (!node.box.overlaps(box_M)) continue;
+    if (node.count > 0) {
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        if (tri_boxes_[static_cast<size_t>(i)].overlaps(box_M)) out->push_back(order_[static_cast<size_t>(i)]);
+      }
+    } else {
+      stack[sp++] = node.right;
+      stack[sp++] = node.first;
+    }
+  }
+}
+
+bool MeshBvh::closest(const Shape& shape, const Pose& X_MB, double max_distance, NearTriangle* out) const {
+  if (nodes_.empty() || std::isnan(max_distance)) return false;
+  double best = max_distance + coreRadius(shape);  // core-distance threshold, inclusive
+  if (best < 0.0) return false;
+  const CoreM core(shape, X_MB);
+  const Mat3 R_BM = core.R_MB.transpose();
+  int best_index = -1;
+  Vec3 best_core_B, best_tri_B;
+  std::array<Vec3, 3> best_abc_B;
+
+  int stack[kStackSize];
+  double stack_lb[kStackSize];
+  int sp = 0;
+  stack[sp] = 0;
+  stack_lb[sp++] = core.lowerBound(nodes_[0].box);
+  while (sp > 0) {
+    --sp;
+    if (stack_lb[sp] > best) continue;
+    const Node& node = nodes_[static_cast<size_t>(stack[sp])];
+    if (node.count > 0) {
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        if (core.lowerBound(tri_boxes_[static_cast<size_t>(i)]) > best) continue;
+        const auto& v = tri_vertices_[static_cast<size_t>(i)];
+        if (core.lowerBound(v) > best) continue;
+        const std::array<Vec3, 3> abc_B = {R_BM * (v[0] - X_MB.p), R_BM * (v[1] - X_MB.p), R_BM * (v[2] - X_MB.p)};
+        Vec3 core_B, tri_B;
+        const double d = detail::coreTriangle(shape, abc_B[0], abc_B[1], abc_B[2], &core_B, &tri_B);
+        if (d <= best) {
+          best = d;
+          best_index = i;
+          best_core_B = core_B;
+          best_tri_B = tri_B;
+          best_abc_B = abc_B;
+        }
+      }
+      continue;
+    }
+    const double lb_left = core.lowerBound(nodes_[static_cast<size_t>(node.first)].box);
+    const double lb_right = core.lowerBound(nodes_[static_cast<size_t>(node.right)].box);
+    // Nearer child on top of the stack.
+    const bool left_first = lb_left <= lb_right;
+    const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
+    const double far_lb = left_first ? lb_right : lb_left, near_lb = left_first ? lb_left : lb_right;
+    if (far_lb <= best) { stack[sp] = far_node; stack_lb[sp++] = far_lb; }
+    if (near_lb <= best) { stack[sp] = near_node; stack_lb[sp++] = near_lb; }
+  }
+  if (best_index < 0) return false;
+  out->triangle = order_[static_cast<size_t>(best_index)];
+  out->closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, best, best_core_B, best_tri_B, best_abc_B[0],
+                                             best_abc_B[1], best_abc_B[2]);
+  return true;
+}
+
+void MeshBvh::near(const Shape& shape, const Pose& X_MB, double max_distance, std::vector<NearTriangle>* out) const {
+  if (nodes_.empty() || std::isnan(max_distance)) return;
+  const double limit = max_distance + coreRadius(shape);
+  if (limit < 0.0) return;
+  const CoreM core(shape, X_MB);
+  const Mat3 R_BM = core.R_MB.transpose();
+  int stack[kStackSize];
+  int sp = 0;
+  stack[sp++] = 0;
+  while (sp > 0) {
+    const Node& node = nodes_[static_cast<size_t>(stack[--sp])];
+    if (core.lowerBound(node.box) > limit) continue;
+    if (node.count > 0) {
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        if (core.lowerBound(tri_boxes_[static_cast<size_t>(i)]) > limit) continue;
+        const auto& v = tri_vertices_[static_cast<size_t>(i)];
+        if (core.lowerBound(v) > limit) continue;
+        const Vec3 a_B = R_BM * (v[0] - X_MB.p), b_B = R_BM * (v[1] - X_MB.p), c_B = R_BM * (v[2] - X_MB.p);
+        Vec3 core_B, tri_B;
+        const double d = detail::coreTriangle(shape, a_B, b_B, c_B, &core_B, &tri_B);
+        if (d <= limit) {
+          NearTriangle nt;
+          nt.triangle = order_[static_cast<size_t>(i)];
+          nt.closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, d, core_B, tri_B, a_B, b_B, c_B);
+          out->push_back(nt);
+        }
+      }
+    } else {
+      stack[sp++] = node.right;
+      stack[sp++] = node.first;
+    }
+  }
+}
+
+double MeshBvh::advancementStep(const Shape& shape, const Pose& X_MB, const Vec3& dp_M, const Vec3& theta_M,
+                                double eta, double horizon, NearTriangle* limiting, int hint) const {
+  limiting->triangle = -1;
+  if (nodes_.empty() || !(horizon > 0.0)) return std::max(0.0, horizon);
+  const double r = coreRadius(shape), rho_c = coreBoundingRadius(shape);
+  const double mu_c = dp_M.norm() + rho_c * theta_M.norm();  // bound along any direction
+  const CoreM core(shape, X_MB);
+  const Mat3 R_BM = core.R_MB.transpose();
+  // Time for a separation s (core to object, along unit w) to shrink to r + η.
+  auto timeBound = [&](double s, const Vec3& w) {
+    const double margin = s - r - eta;
+    if (margin <= 0.0) return 0.0;
+    const double rate = w.dot(dp_M) + rho_c * w.cross(theta_M).norm();
+    return rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
+  };
+  // Lower bound of the time before box b can come within η: the larger of the directional bound
+  // along the first-order separating direction and the box-gap bound at the full speed μ_c.
+  auto boxTime = [&](const Aabb& b) {
+    const Vec3 gap = (b.lo - core.box.hi).cwiseMax(core.box.lo - b.hi).cwiseMax(0.0);
+    const double margin_gap = std::sqrt(gap.squaredNorm()) - r - eta;
+    double t_gap = 0.0;
+    if (margin_gap > 0.0) t_gap = mu_c > 0.0 ? margin_gap / mu_c : std::numeric_limits<double>::infinity();
+    Vec3 u;
+    const double f = core.pointDistance(b.centre(), &u);
+    if (f <= 0.0) return t_gap;
+    return std::max(t_gap, timeBound(f - u.cwiseAbs().dot(0.5 * b.extent()), u));
+  };
+  double best = horizon;
+  int best_index = std::numeric_limits<int>::min();  // none yet
+  Vec3 best_core_B, best_tri_B;
+  std::array<Vec3, 3> best_abc_B;
+  double best_d = 0.0;
+  // Exact time bound of one triangle (corners in M); updates the best.
+  auto visitTriangle = [&](int i, const std::array<Vec3, 3>& v) {
+    const std::array<Vec3, 3> abc_B = {R_BM * (v[0] - X_MB.p), R_BM * (v[1] - X_MB.p), R_BM * (v[2] - X_MB.p)};
+    Vec3 core_B, tri_B;
+    const double d_core = detail::coreTriangle(shape, abc_B[0], abc_B[1], abc_B[2], &core_B, &tri_B);
+    double t_i = 0.0;
+    if (d_core > r + eta) {
+      // Separating direction from the core towards the triangle, frame M.
+      const Vec3 w_M = core.R_MB * ((tri_B - core_B) / d_core);
+      t_i = timeBound(d_core, w_M);
+    }
+    if (t_i < best) {
+      best = t_i;
+      best_index = i;
+      best_core_B = core_B;
+      best_tri_B = tri_B;
+      best_abc_B = abc_B;
+      best_d = d_core;
+    }
+  };
+  if (hint >= 0 && hint < mesh_.triangleCount()) {
+    visitTriangle(-1 - hint, {mesh_.vertex(hint, 0), mesh_.vertex(hint, 1), mesh_.vertex(hint, 2)});
+  }
+  int stack[kStackSize];
+  double stack_t[kStackSize];
+  int sp = 0;
+  stack[sp] = 0;
+  stack_t[sp++] = boxTime(nodes_[0].box);
+  while (sp > 0) {
+    --sp;
+    if (stack_t[sp] >= best) continue;
+    const Node& node = nodes_[static_cast<size_t>(stack[sp])];
+    if (node.count > 0) {
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        if (boxTime(tri_boxes_[static_cast<size_t>(i)]) >= best) continue;
+        const auto& v = tri_vertices_[static_cast<size_t>(i)];
+        {
+          const Vec3 c = (v[0] + v[1] + v[2]) / 3.0;
+          Vec3 u;
+          const double f = core.pointDistance(c, &u);
+          if (f > 0.0 &&
+              timeBound(f + std::min({u.dot(v[0] - c), u.dot(v[1] - c), u.dot(v[2] - c)}), u) >= best)
+            continue;
+        }
+        visitTriangle(i, v);
+      }
+      continue;
+    }
+    const double t_left = boxTime(nodes_[static_cast<size_t>(node.first)].box);
+    const double t_right = boxTime(nodes_[static_cast<size_t>(node.right)].box);
+    const bool left_first = t_left <= t_right;
+    const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
+    const double far_t = left_first ? t_right : t_left, near_t = left_first ? t_left : t_right;
+    if (far_t < best) { stack[sp] = far_node; stack_t[sp++] = far_t; }
+    if (near_t < best) { stack[sp] = near_node; stack_t[sp++] = near_t; }
+  }
+  if (best_index != std::numeric_limits<int>::min()) {
+    // best_index ≥ 0: position in order_; < 0: the hint, encoded −1 − triangle.
+    limiting->triangle = best_index >= 0 ? order_[static_cast<size_t>(best_index)] : -1 - best_index;
+    limiting->closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, best_d, best_core_B, best_tri_B,
+                                                    best_abc_B[0], best_abc_B[1], best_abc_B[2]);
+  }
+  return best;
+}
+
+double MeshBvh::windingNumber(const Vec3& p_M) const {
+  if (nodes_.empty()) return 0.0;
+  double omega = 0.0;
+  int stack[kStackSize];
+  int sp = 0;
+  stack[sp++] = 0;
+  while (sp > 0) {
+    const int index = stack[--sp];
+    const Node& node = nodes_[static_cast<size_t>(index)];
+    const Vec3 r = node.dipole_centre - p_M;
+    const double dist2 = r.squaredNorm();
+    if (dist2 > kWindingBeta * kWindingBeta * node.radius * node.radius) {
+      // Far field (see bvh.h): dipole N·r/|r|³ plus the second-order moment term.
+      const Mat3& M = dipole_moment_[static_cast<size_t>(index)];
+      const double inv3 = 1.0 / (dist2 * std::sqrt(dist2));
+      omega += inv3 * (r.dot(node.dipole_normal) + M.trace() - 3.0 * r.dot(M * r) / dist2);
+    } else if (node.count > 0) {
+      for (int i = node.first; i < node.first + node.count; ++i) {
+        const auto& v = tri_vertices_[static_cast<size_t>(i)];
+        omega += solidAngle(v[0] - p_M, v[1] - p_M, v[2] - p_M);
+      }
+    } else {
+      stack[sp++] = node.right;
+      stack[sp++] = node.first;
+    }
+  }
+  return omega / (4.0 * kPi);
+}
+
+}  // namespace godhand::geo

@@ -1,0 +1,145 @@
+#include "geometry/sweep.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace godhand::geo {
+namespace {
+
+/// The motion, precomputed once per sweep.
+struct Motion {
+  Pose X0;
+  Vec3 dp;     ///< p1 − p0
+  Vec3 theta;  ///< log(R1 R0ᵀ)
+
+  Motion(const Pose& X_M0, const Pose& X_M1)
+      : X0(X_M0), dp(X_M1.p - X_M0.p), theta(logRotation(X_M1.q * X_M0.q.conjugate())) {}
+
+  Pose at(double t) const {
+    Pose X;
+    X.p = X0.p + t * dp;
+    X.q = (expRotation(t * theta) * X0.q).normalized();
+    return X;
+  }
+};
+
+/// d(t), looking as far as `window`; +inf if nothing is within it.
+double distanceAt(const Shape& shape, const Motion& motion, double t, double window, const MeshBvh& bvh) {
+  NearTriangle nt;
+  return bvh.closest(shape, motion.at(t), window, &nt) ? nt.closest.distance : std::numeric_limits<double>::infinity();
+}
+
+/// Directional conservative advancement (sweep.h) from t = 0, where d(0) = d0 > η.
+SweepResult directionalSweep(const Shape& shape, const Motion& motion, double mu, double d0, int nearest, double eta,
+                             const MeshBvh& bvh, const SweepParams& params, SweepResult result) {
+  double t = 0.0;
+  double d_limit = d0;  // distance of the triangle that limited the last step
+  NearTriangle limiting;
+  limiting.triangle = nearest;
+  for (;;) {
+    if (result.iterations >= params.max_iterations) {
+      result.hit = true;
+      result.capped = true;
+      result.toc = t;
+      result.distance = distanceAt(shape, motion, t, mu + eta, bvh);
+      return result;
+    }
+    ++result.iterations;
+    const double horizon = 1.0 - t;
+    const double dt =
+        bvh.advancementStep(shape, motion.at(t), motion.dp, motion.theta, eta, horizon, &limiting, limiting.triangle);
+    if (limiting.triangle >= 0) {
+      d_limit = limiting.closest.distance;
+      if (d_limit <= eta + params.tolerance) {
+        result.hit = true;
+        result.toc = t;
+        // The limiting triangle is within η + tolerance; a nearer one may be receding.
+        result.distance = std::min(d_limit, distanceAt(shape, motion, t, d_limit, bvh));
+        return result;
+      }
+    }
+    if (limiting.triangle < 0 || dt >= horizon) {
+      result.toc = 1.0;
+      result.distance = distanceAt(shape, motion, 1.0, mu + eta, bvh);
+      return result;
+    }
+    t += dt;
+  }
+}
+
+}  // namespace
+
+Pose interpolateMotion(const Pose& X0, const Pose& X1, double t) { return Motion(X0, X1).at(t); }
+
+SweepResult sweep(const Shape& shape, const Pose& X_M0, const Pose& X_M1, const MeshBvh& bvh,
+                  const SweepParams& params) {
+  SweepResult result;
+  const double inf = std::numeric_limits<double>::infinity();
+  const Motion motion(X_M0, X_M1);
+  // μ: bound on how far any point of the shape moves over the whole step.
+  const double mu = motion.dp.norm() + motion.theta.norm() * boundingRadius(shape);
+
+  // d(0), looking only as far as the motion can reach (+ the largest possible η).
+  NearTriangle nt;
+  result.iterations = 1;
+  if (!bvh.closest(shape, X_M0, mu + params.stop_distance, &nt)) {
+    result.toc = 1.0;
+    result.distance = inf;
+    return result;
+  }
+  double d = nt.closest.distance;
+  if (!(d > 0.0)) {
+    result.started_inside = true;
+    result.toc = 0.0;
+    result.distance = d;
+    return result;
+  }
+  const double eta = std::min(params.stop_distance, 0.5 * d);
+  if (params.directional) return directionalSweep(shape, motion, mu, d, nt.triangle, eta, bvh, params, result);
+  double t = 0.0;
+  for (;;) {
+    if (d <= eta + params.tolerance) {
+      result.hit = true;
+      result.toc = t;
+      result.distance = d;
+      return result;
+    }
+    if (!(mu > 0.0)) {  // no motion, and not within the stop distance
+      result.toc = 1.0;
+      result.distance = d;
+      return result;
+    }
+    if (result.iterations >= params.max_iterations) {
+      // Out of iterations: what has been verified so far (conservative), reported as a hit
+      // so that the caller stops there.
+      result.hit = true;
+      result.capped = true;
+      result.toc = t;
+      result.distance = d;
+      return result;
+    }
+    // Conservative advancement: the distance shrinks at most at rate μ.
+    t += (d - eta) / mu;
+    if (t >= 1.0) {
+      // Only reachable through round-off (the window below keeps d − η ≤ μ (1 − t)).
+      t = 1.0;
+    }
+    const double window = mu * (1.0 - t) + eta;
+    ++result.iterations;
+    if (!bvh.closest(shape, motion.at(t), window, &nt)) {
+      // Nothing within what the rest of the motion can reach: safe to the end.
+      result.toc = 1.0;
+      result.distance = inf;
+      return result;
+    }
+    d = nt.closest.distance;
+    if (t >= 1.0 && d > eta + params.tolerance) {
+      result.toc = 1.0;
+      result.distance = d;
+      return result;
+    }
+  }
+}
+
+}  // namespace godhand::geo

@@ -1,0 +1,238 @@
+#include "pipeline/collision_world.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace godhand {
+
+namespace {
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+std::uint64_t contactKey(int object, int triangle, int body, int sample) {
+  const std::uint64_t id = (static_cast<std::uint64_t>(object) << 44) ^
+                           (static_cast<std::uint64_t>(static_cast<std::uint32_t>(triangle)) << 12) ^
+                           (static_cast<std::uint64_t>(sample & 0xf) << 8) ^ static_cast<std::uint64_t>(body & 0xff);
+  return rowKey(RowKind::Contact, id);
+}
+
+// Box of a sphere of radius r swept along the segment a–b.
+geo::Aabb sweptBox(const Vec3& a, const Vec3& b, double r) {
+  geo::Aabb box;
+  box.grow(a);
+  box.grow(b);
+  return box.inflated(r);
+}
+}  // namespace
+
+CollisionWorld::CollisionWorld(const Scene& scene) {
+  objects_.reserve(scene.objects.size());
+  for (const SceneObject& so : scene.objects) {
+    Object o;
+    o.god = so.god.get();
+    o.reference = so.reference ? so.reference.get() : so.god.get();
+    o.dynamic = so.mass > 0.0;
+    objects_.push_back(o);
+    setObjectPose(static_cast<int>(objects_.size()) - 1, so.X_WO);
+  }
+  near_.reserve(1024);
+  order_.reserve(1024);
+  sample_.reserve(64);
+  kept_.reserve(16);
+}
+
+void CollisionWorld::setObjectPose(int object, const Pose& X_WO) {
+  Object& o = objects_[static_cast<size_t>(object)];
+  o.X_WO = X_WO;
+  o.box_W = o.god ? geo::transformAabb(o.god->bounds(), X_WO) : geo::Aabb{};
+  o.ref_box_W = o.reference ? geo::transformAabb(o.reference->bounds(), X_WO) : geo::Aabb{};
+}
+
+bool CollisionWorld::insideGod(const Object& o, const Pose& X_OB) const {
+  if (!o.dynamic) return false;  // static objects: the sweep never lets a God object in
+  const geo::Aabb& b = o.god->bounds();
+  if ((X_OB.p.array() < b.lo.array()).any() || (X_OB.p.array() > b.hi.array()).any()) return false;
+  return o.god->inside(X_OB.p);
+}
+
+int CollisionWorld::contacts(const Shape& shape, const Pose& X_WB, int body, double reach,
+                             const ContactParams& params, std::vector<Contact>* out) {
+  const geo::Aabb query_W = geo::shapeAabb(shape, X_WB).inflated(reach);
+  const double cos_same = std::cos(params.normal_angle);
+  const double spread2 = params.spread * params.spread;
+  // Sample shapes (body frame): the whole shape, plus the capsule's end spheres or the box's
+  // corners, so that a body lying along a surface gets contacts at both ends / all corners.
+  Shape samples[9];
+  Vec3 offsets[9];
+  int num_samples = 1;
+  samples[0] = shape;
+  offsets[0] = Vec3::Zero();
+  if (shape.type == ShapeType::Capsule) {
+    Shape end;
+    end.type = ShapeType::Sphere;
+    end.radius = shape.radius;
+    for (int s = -1; s <= 1; s += 2) {
+      samples[num_samples] = end;
+      offsets[num_samples++] = Vec3(0, 0, s * shape.half_length);
+    }
+  } else if (shape.type == ShapeType::Box) {
+    Shape corner;
+    corner.type = ShapeType::Sphere;
+    corner.radius = 0.0;
+    for (int c = 0; c < 8; ++c) {
+      samples[num_samples] = corner;
+      offsets[num_samples++] = Vec3((c & 1) ? 1 : -1, (c & 2) ? 1 : -1, (c & 4) ? 1 : -1).cwiseProduct(shape.half_extents);
+    }
+  }
+  int added = 0;
+  for (size_t oi = 0; oi < objects_.size(); ++oi) {
+    const Object& o = objects_[oi];
+    if (!o.god || !o.box_W.overlaps(query_W)) continue;
+    const Pose X_OB = o.X_WO.inverse() * X_WB;
+    const bool inside = insideGod(o, X_OB);
+    near_.clear();
+    sample_.clear();
+    // Inside a (dynamic) object the nearest surface may be farther than the reach.
+    const double range = inside ? kInf : reach;
+    for (int k = 0; k < num_samples; ++k) {
+      geo::NearTriangle c;
+      const Pose X_OS{X_OB * offsets[k], X_OB.q};
+      if (!o.god->closest(samples[k], X_OS, range, &c)) {
+        if (k == 0) break;  // nothing within reach of the whole shape: none of its parts either
+        continue;
+      }
+      near_.push_back(c);
+      sample_.push_back(k);
+    }
+    if (near_.empty()) continue;
+    order_.resize(near_.size());
+    for (size_t i = 0; i < near_.size(); ++i) order_[i] = static_cast<int>(i);
+    std::sort(order_.begin(), order_.end(), [&](int a, int b) {
+      const double da = near_[static_cast<size_t>(a)].closest.distance, db = near_[static_cast<size_t>(b)].closest.distance;
+      return da < db || (da == db && near_[static_cast<size_t>(a)].triangle < near_[static_cast<size_t>(b)].triangle);
+    });
+    kept_.clear();
+    for (int idx : order_) {
+      if (static_cast<int>(kept_.size()) >= params.per_pair) break;
+      const geo::NearTriangle& c = near_[static_cast<size_t>(idx)];
+      bool redundant = false;
+      for (int k : kept_) {
+        const geo::ClosestPoints& q = near_[static_cast<size_t>(k)].closest;
+        if ((q.p_triangle - c.closest.p_triangle).squaredNorm() < spread2 && q.n.dot(c.closest.n) > cos_same) {
+          redundant = true;
+          break;
+        }
+      }
+      if (!redundant) kept_.push_back(idx);
+    }
+    for (int k : kept_) {
+      const geo::NearTriangle& c = near_[static_cast<size_t>(k)];
+      Contact ct;
+      ct.body = body;
+      ct.object = static_cast<int>(oi);
+      ct.key = contactKey(static_cast<int>(oi), c.triangle, body, sample_[static_cast<size_t>(k)]);
+      ct.p_W = o.X_WO * c.closest.p_shape;
+      ct.n_W = o.X_WO.q * c.closest.n;
+      ct.distance = c.closest.distance;
+      if (inside) {  // the triangle's closest point is an exit: push out through it
+        ct.n_W = -ct.n_W;
+        ct.distance = -(c.closest.core_distance + geo::coreRadius(shape));
+        ct.p_W = o.X_WO * c.closest.p_triangle;
+      }
+      out->push_back(ct);
+      ++added;
+    }
+  }
+  return added;
+}
+
+geo::SweepResult CollisionWorld::sweep(const Shape& shape, const Pose& X_W0, const Pose& X_W1,
+                                       const geo::SweepParams& params, int* object_hit) const {
+  geo::SweepResult best;
+  best.distance = kInf;
+  if (object_hit) *object_hit = -1;
+  const geo::Aabb swept = sweptBox(X_W0.p, X_W1.p, geo::boundingRadius(shape) + params.stop_distance);
+  for (size_t oi = 0; oi < objects_.size(); ++oi) {
+    const Object& o = objects_[oi];
+    if (!o.god || !o.box_W.overlaps(swept)) continue;
+    const Pose X_WOinv = o.X_WO.inverse();
+    const geo::SweepResult r = geo::sweep(shape, X_WOinv * X_W0, X_WOinv * X_W1, *o.god, params);
+    if (r.started_inside) {  // cannot be clipped; reported, resolved by push-out contacts
+      best.started_inside = true;
+      continue;
+    }
+    if (r.toc < best.toc || (r.hit && !best.hit && r.toc <= best.toc)) {
+      const bool started = best.started_inside;
+      best = r;
+      best.started_inside = started;
+      if (object_hit) *object_hit = static_cast<int>(oi);
+    }
+    best.iterations = std::max(best.iterations, r.iterations);
+  }
+  return best;
+}
+
+double CollisionWorld::penetration(const Shape& shape, const Pose& X_WB, int* object) const {
+  double deepest = 0.0;
+  if (object) *object = -1;
+  const geo::Aabb box = geo::shapeAabb(shape, X_WB);
+  for (size_t oi = 0; oi < objects_.size(); ++oi) {
+    const Object& o = objects_[oi];
+    if (!o.reference || !o.ref_box_W.overlaps(box)) continue;
+    const Pose X_OB = o.X_WO.inverse() * X_WB;
+    double depth = 0.0;
+    geo::NearTriangle c;
+    const geo::Aabb& rb = o.reference->bounds();
+    const bool in_box = (X_OB.p.array() >= rb.lo.array()).all() && (X_OB.p.array() <= rb.hi.array()).all();
+    if (in_box && o.reference->inside(X_OB.p)) {
+      o.reference->closest(shape, X_OB, kInf, &c);
+      depth = c.closest.core_distance + geo::coreRadius(shape);
+    } else if (o.reference->closest(shape, X_OB, 0.0, &c)) {
+      depth = std::max(0.0, -c.closest.distance);
+    }
+    if (depth > deepest) {
+      deepest = depth;
+      if (object) *object = static_cast<int>(oi);
+    }
+  }
+  return deepest;
+}
+
+double CollisionWorld::signedDistance(int object, const Shape& shape, const Pose& X_WB, double range,
+                                      Vec3* n_W) const {
+  const Object& o = objects_[static_cast<size_t>(object)];
+  if (!o.god || !o.box_W.overlaps(geo::shapeAabb(shape, X_WB).inflated(range))) return kInf;
+  const Pose X_OB = o.X_WO.inverse() * X_WB;
+  const geo::Aabb& gb = o.god->bounds();
+  const bool in_box = (X_OB.p.array() >= gb.lo.array()).all() && (X_OB.p.array() <= gb.hi.array()).all();
+  geo::NearTriangle c;
+  if (in_box && o.god->inside(X_OB.p)) {
+    o.god->closest(shape, X_OB, kInf, &c);
+    if (n_W) *n_W = -(o.X_WO.q * c.closest.n);
+    return -(c.closest.core_distance + geo::coreRadius(shape));
+  }
+  if (!o.god->closest(shape, X_OB, range, &c)) return kInf;
+  if (n_W) *n_W = o.X_WO.q * c.closest.n;
+  return c.closest.distance;
+}
+
+double CollisionWorld::clearance(const Shape& shape, const Pose& X_WB, double range) const {
+  double best = kInf;
+  const geo::Aabb box = geo::shapeAabb(shape, X_WB).inflated(range);
+  for (const Object& o : objects_) {
+    if (!o.god || !o.box_W.overlaps(box)) continue;
+    const Pose X_OB = o.X_WO.inverse() * X_WB;
+    const geo::Aabb& gb = o.god->bounds();
+    const bool in_box = (X_OB.p.array() >= gb.lo.array()).all() && (X_OB.p.array() <= gb.hi.array()).all();
+    geo::NearTriangle c;
+    if (in_box && o.god->inside(X_OB.p)) {
+      o.god->closest(shape, X_OB, kInf, &c);
+      best = std::min(best, -(c.closest.core_distance + geo::coreRadius(shape)));
+    } else if (o.god->closest(shape, X_OB, range, &c)) {
+      best = std::min(best, c.closest.distance);
+    }
+  }
+  return best;
+}
+
+}  // namespace godhand

@@ -1,0 +1,84 @@
+// The God-object collision stage against the scene (METHOD.md §2 step 5, paper §6.2–6.3): contact
+// generation, continuous collision (sweeps) and the exact penetration figure, over every scene
+// object's triangle-mesh BVH at the object's current pose.
+//
+// Contacts (paper Eq. 24 rows, thinned as METHOD.md §3 asks): for each object whose box is within
+// `reach` of a God object, exact closest-point queries on the BVH for the whole shape and for
+// its parts (a capsule's two end spheres, a box's eight corners) give up to 9 candidate
+// triangles, independent of the mesh's density (a dense mesh has thousands of triangles within
+// a centimetre of a phalanx; taking all of them cost milliseconds and gave redundant rows). Per
+// (body, object) pair at most K are kept, greedily in order of distance, skipping one whose
+// point lies within `spread` of a kept one with a normal within `normal_angle` of it.
+// Normals point from the object towards the God object. Meshes are hollow to distance queries:
+// for dynamic objects (the only ones that can move onto a God object) the winding number of the
+// body origin decides inside/outside, and a body found inside gets its normals flipped and its
+// distances made negative, so that its rows push it out instead of further in.
+//
+// Penetration (METHOD.md §5): exact depth against the full-resolution reference meshes:
+// max(0, −d) with d the exact shape–mesh distance, or, when the body origin is inside the mesh
+// (winding number > ½), the distance from the body's core to the surface plus its radius.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "geometry/bvh.h"
+#include "geometry/sweep.h"
+#include "scene/scene.h"
+#include "step/constraints.h"
+
+namespace godhand {
+
+struct ContactParams {
+  int per_pair = 4;             ///< K: contacts kept per (God object, scene object)
+  double spread = 0.004;        ///< m: closer kept points must differ in normal
+  double normal_angle = 0.35;   ///< rad: normals closer than this count as the same direction
+};
+
+class CollisionWorld {
+ public:
+  /// The scene must outlive the world (its BVHs are shared, not copied).
+  explicit CollisionWorld(const Scene& scene);
+
+  int objectCount() const { return static_cast<int>(objects_.size()); }
+  void setObjectPose(int object, const Pose& X_WO);
+  const Pose& objectPose(int object) const { return objects_[static_cast<size_t>(object)].X_WO; }
+  const geo::Aabb& objectBox(int object) const { return objects_[static_cast<size_t>(object)].box_W; }
+
+  /// Appends the thinned contacts of God object `body` (shape at X_WB) with every object within
+  /// `reach` (m). Keys identify (object, triangle, body) for warm starts. Returns the number added.
+  int contacts(const Shape& shape, const Pose& X_WB, int body, double reach, const ContactParams& params,
+               std::vector<Contact>* out);
+
+  /// Time of contact of the motion X_W0 → X_W1 against every object it can reach (objects held
+  /// at their current poses). `object_hit` (optional) receives the object that limits it, or −1.
+  geo::SweepResult sweep(const Shape& shape, const Pose& X_W0, const Pose& X_W1, const geo::SweepParams& params,
+                         int* object_hit = nullptr) const;
+
+  /// Exact penetration depth (≥ 0, m) against the reference meshes; `object` gets the deepest.
+  double penetration(const Shape& shape, const Pose& X_WB, int* object = nullptr) const;
+  /// Smallest signed distance (m) to the God-collision meshes within `range` (inside ⇒ < 0):
+  /// +inf when nothing is within range.
+  double clearance(const Shape& shape, const Pose& X_WB, double range) const;
+  /// Signed distance (m, inside ⇒ < 0) of the shape to one object's God mesh within `range`
+  /// (+inf beyond), and the unit normal from the object towards the shape (world).
+  double signedDistance(int object, const Shape& shape, const Pose& X_WB, double range, Vec3* n_W) const;
+
+ private:
+  struct Object {
+    const geo::MeshBvh* god = nullptr;
+    const geo::MeshBvh* reference = nullptr;
+    Pose X_WO;
+    geo::Aabb box_W;       ///< of the God mesh at X_WO
+    geo::Aabb ref_box_W;   ///< of the reference mesh at X_WO
+    bool dynamic = false;
+  };
+  bool insideGod(const Object& o, const Pose& X_OB) const;
+
+  std::vector<Object> objects_;
+  std::vector<geo::NearTriangle> near_;   // scratch
+  std::vector<int> order_, sample_;       // scratch
+  std::vector<int> kept_;                 // scratch
+};
+
+}  // namespace godhand

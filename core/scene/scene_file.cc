@@ -1,0 +1,450 @@
+#include "scene/scene_file.h"
+
+#include <google/protobuf/io/tokenizer.h>
+#include <google/protobuf/text_format.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <optional>
+#include <set>
+#include <sstream>
+
+#include "scene.pb.h"
+#include "scene/mesh_io.h"
+
+namespace godhand {
+
+namespace {
+
+constexpr size_t kMaxPhysicsHullVertices = 100;
+
+namespace fs = std::filesystem;
+using geo::MeshBvh;
+using geo::TriangleMesh;
+using google::protobuf::FieldDescriptor;
+using google::protobuf::Message;
+using google::protobuf::TextFormat;
+
+constexpr long long kMaxSubdividedTriangles = 50'000'000;
+
+/// Collects the first syntax error of the text parser with its position.
+class FirstError : public google::protobuf::io::ErrorCollector {
+ public:
+  void AddError(int line, google::protobuf::io::ColumnNumber column, const std::string& message) override {
+    if (!has) { has = true; text = std::to_string(line + 1) + ":" + std::to_string(column + 1) + ": " + message; }
+  }
+  void AddWarning(int, google::protobuf::io::ColumnNumber, const std::string&) override {}
+  bool has = false;
+  std::string text;
+};
+
+/// "SOURCE:LINE: PATH: " for field `name` of `msg` (index -1 for singular fields), falling back
+/// to the enclosing message's line when the field is absent (same scheme as the hand model).
+std::string locate(const std::string& source, const Message& msg, const TextFormat::ParseInfoTree* tree,
+                   const std::string& name, int fallback_line, const std::string& path) {
+  int line = fallback_line;
+  const FieldDescriptor* f = msg.GetDescriptor()->FindFieldByName(name);
+  if (tree && f) {
+    const auto loc = tree->GetLocation(f, -1);
+    if (loc.line >= 0) line = loc.line + 1;
+  }
+  return source + ":" + (line > 0 ? std::to_string(line) : "?") + ": " + path + ": ";
+}
+
+Vec3 toVec(const pb::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+bool finite(double x) { return std::isfinite(x); }
+
+std::string num(double x) {
+  std::ostringstream os;
+  os.precision(6);
+  os << x;
+  return os.str();
+}
+
+/// Exact text of a double for cache keys.
+std::string bits(double x) {
+  uint64_t u;
+  std::memcpy(&u, &x, sizeof u);
+  return std::to_string(u);
+}
+
+std::shared_ptr<const MeshBvh> makeBvh(TriangleMesh mesh) {
+  return std::make_shared<const MeshBvh>(std::move(mesh));
+}
+
+/// A mesh file at one scale / centring / subdivision: the full-resolution BVH and what the
+/// other fidelities derive from.
+struct MeshAsset {
+  std::shared_ptr<const MeshBvh> full;
+  TriangleMesh base;          ///< scaled and centred, before subdivision (same surface as full)
+  geo::Aabb bounds;           ///< of base (= of full)
+  double scale = 1.0;
+  Vec3 translation = Vec3::Zero();
+  std::optional<std::vector<Vec3>> hull_points;
+  std::map<std::string, std::shared_ptr<const MeshBvh>> god;  ///< by fidelity key
+};
+
+/// Everything loaded once per loadScene / meshScene call and shared between objects.
+class Cache {
+ public:
+  /// The cleaned mesh of a file (throws MeshError).
+  const TriangleMesh& raw(const std::string& file) {
+    const std::string key = fs::weakly_canonical(file).string();
+    auto it = raw_.find(key);
+    if (it == raw_.end()) it = raw_.emplace(key, loadMeshFile(file)).first;
+    return it->second;
+  }
+
+  MeshAsset& asset(const std::string& file, double scale, bool centre, int subdiv) {
+    const TriangleMesh& r = raw(file);
+    const std::string key = fs::weakly_canonical(file).string() + "|" + bits(scale) + "|" + (centre ? "c" : "-") +
+                            "|" + std::to_string(subdiv);
+    auto it = assets_.find(key);
+    if (it != assets_.end()) return it->second;
+    MeshAsset a;
+    a.scale = scale;
+    a.base = uniformScale(r, scale);
+    if (centre) {
+      a.translation = -meshBounds(a.base).centre();
+      a.base = translate(std::move(a.base), a.translation);
+    }
+    a.bounds = meshBounds(a.base);
+    a.full = makeBvh(subdiv > 0 ? subdivide(a.base, subdiv) : a.base);
+    return assets_.emplace(key, std::move(a)).first->second;
+  }
+
+  const std::vector<Vec3>& hullPoints(MeshAsset& a) {
+    // Bullet's convex-hull collision costs O(vertices) per support call and its multi-point
+    // contacts call it many times: the bunny's 1,502-vertex hull took ~1 s per scene step. The
+    // physics hull is therefore the hull of a decimated hull, at most ~100 vertices (within one
+    // clustering cell of the true hull; the God-object collision never uses this hull).
+    if (!a.hull_points) {
+      TriangleMesh hull = convexHull(a.base.vertices);
+      if (hull.vertices.size() > kMaxPhysicsHullVertices) hull = convexHull(decimate(hull, 150).vertices);
+      a.hull_points = hull.vertices;
+    }
+    return *a.hull_points;
+  }
+
+  /// Tessellated primitive shared by identical primitives.
+  std::shared_ptr<const MeshBvh> primitive(const std::string& key, const std::function<TriangleMesh()>& make) {
+    auto it = primitives_.find(key);
+    if (it == primitives_.end()) it = primitives_.emplace(key, makeBvh(make())).first;
+    return it->second;
+  }
+
+ private:
+  std::map<std::string, TriangleMesh> raw_;
+  std::map<std::string, MeshAsset> assets_;
+  std::map<std::string, std::shared_ptr<const MeshBvh>> primitives_;
+};
+
+void addTotals(Scene* scene) {
+  scene->god_triangles = scene->reference_triangles = 0;
+  for (size_t i = 0; i < scene->objects.size(); ++i) {
+    SceneObject& o = scene->objects[i];
+    o.index = static_cast<int>(i);
+    scene->god_triangles += o.god->triangleCount();
+    scene->reference_triangles += o.reference->triangleCount();
+  }
+}
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+}  // namespace
+
+Scene parseScene(const std::string& text, const std::string& source, const std::string& base_dir) {
+  pb::Scene msg;
+  TextFormat::ParseInfoTree tree;
+  FirstError errors;
+  TextFormat::Parser parser;
+  parser.RecordErrorsTo(&errors);
+  parser.WriteLocationsTo(&tree);
+  if (!parser.ParseFromString(text, &msg))
+    throw SceneError(source + ":" + (errors.has ? errors.text : std::string("unparsable scene")));
+
+  Scene scene;
+  scene.name = msg.name().empty() ? fs::path(source).stem().string() : msg.name();
+  if (msg.has_gravity()) {
+    scene.gravity = toVec(msg.gravity());
+    if (!scene.gravity.allFinite()) throw SceneError(locate(source, msg, &tree, "gravity", 1, "gravity") + "must be finite");
+  }
+  if (msg.objects_size() == 0) throw SceneError(source + ":1: objects: a scene needs at least one object");
+
+  const FieldDescriptor* f_objects = msg.GetDescriptor()->FindFieldByName("objects");
+  Cache cache;
+  std::set<std::string> ids;
+  for (int i = 0; i < msg.objects_size(); ++i) {
+    const pb::SceneObject& po = msg.objects(i);
+    const TextFormat::ParseInfoTree* t = tree.GetTreeForNested(f_objects, i);
+    const int line = tree.GetLocation(f_objects, i).line + 1;
+    const std::string path = "objects[" + std::to_string(i) + "]";
+    auto where = [&](const std::string& field) {
+      return locate(source, po, t, field, line, path + (field.empty() ? "" : "." + field));
+    };
+    auto bad = [&](const std::string& field, const std::string& reason) { throw SceneError(where(field) + reason); };
+
+    SceneObject o;
+    o.id = po.id();
+    if (o.id.empty()) bad("id", "every object needs an id");
+    if (!ids.insert(o.id).second) bad("id", "duplicate object id '" + o.id + "'");
+
+    o.mass = po.mass();
+    if (!(o.mass >= 0.0 && o.mass <= 1e6)) bad("mass", "mass must lie in [0, 1e6] kg (0 = static), got " + num(o.mass));
+    const bool dynamic = o.mass > 0.0;
+    if (po.has_friction()) {
+      o.friction = po.friction();
+      if (!(o.friction >= 0.0 && o.friction <= 100.0)) bad("friction", "friction must lie in [0, 100], got " + num(o.friction));
+    }
+    if (po.has_restitution()) {
+      o.restitution = po.restitution();
+      if (!(o.restitution >= 0.0 && o.restitution <= 1.0))
+        bad("restitution", "restitution must lie in [0, 1], got " + num(o.restitution));
+    }
+    o.X_WO.p = toVec(po.position());
+    if (!o.X_WO.p.allFinite()) bad("position", "must be finite");
+    if (po.has_orientation()) {
+      const auto& q = po.orientation();
+      const Quat qq(q.w(), q.x(), q.y(), q.z());
+      if (!qq.coeffs().allFinite() || !(qq.norm() > 1e-6))
+        bad("orientation", "must be a finite non-zero quaternion (w, x, y, z); it is normalised on load");
+      o.X_WO.q = qq.normalized();
+    }
+
+    const bool is_mesh = po.geometry_case() == pb::SceneObject::kMesh;
+    if (!is_mesh) {
+      if (po.scaling_case() == pb::SceneObject::kScale) bad("scale", "scale applies to mesh objects only (give primitive dimensions directly)");
+      if (po.scaling_case() == pb::SceneObject::kSize) bad("size", "size applies to mesh objects only (give primitive dimensions directly)");
+      if (po.subdivide() != 0) bad("subdivide", "subdivide applies to mesh objects only");
+      if (po.centre()) bad("centre", "centre applies to mesh objects only (primitives are centred)");
+    }
+
+    // God fidelity.
+    using GF = pb::GodGeometry;
+    const GF::Fidelity god_f = po.god().fidelity() == GF::FIDELITY_DEFAULT ? GF::FULL : po.god().fidelity();
+    if (god_f == GF::DECIMATED && po.god().target_triangles() < 4)
+      bad("god", "DECIMATED needs target_triangles >= 4");
+    if (god_f != GF::DECIMATED && po.god().target_triangles() != 0)
+      bad("god", "target_triangles applies to DECIMATED only");
+
+    // Physics fidelity.
+    using PF = pb::PhysicsGeometry;
+    PF::Fidelity phys_f = po.physics().fidelity();
+    if (phys_f == PF::FIDELITY_DEFAULT) phys_f = !is_mesh ? PF::PRIMITIVE : dynamic ? PF::CONVEX_HULL : PF::TRIANGLE_MESH;
+    if (dynamic && phys_f == PF::TRIANGLE_MESH)
+      bad("physics", "TRIANGLE_MESH physics is for static objects only (mass 0); use CONVEX_HULL or PRIMITIVE for a dynamic object");
+    if (dynamic && phys_f == PF::NONE) bad("physics", "a dynamic object (mass > 0) needs a physics shape, not NONE");
+
+    switch (po.geometry_case()) {
+      case pb::SceneObject::kMesh: {
+        if (po.mesh().empty()) bad("mesh", "empty mesh path");
+        const fs::path p(po.mesh());
+        const std::string file = (p.is_absolute() ? p : fs::path(base_dir) / p).lexically_normal().string();
+        o.source = file;
+        const unsigned subdiv = po.subdivide();
+        try {
+          const TriangleMesh& raw = cache.raw(file);
+          double scale = 1.0;
+          if (po.scaling_case() == pb::SceneObject::kScale) {
+            scale = po.scale();
+            if (!(scale >= 1e-9 && scale <= 1e9)) bad("scale", "scale must lie in [1e-9, 1e9], got " + num(scale));
+          } else if (po.scaling_case() == pb::SceneObject::kSize) {
+            if (!(po.size() >= 1e-6 && po.size() <= 1e3)) bad("size", "size must lie in [1e-6, 1000] m, got " + num(po.size()));
+            const double extent = meshBounds(raw).extent().maxCoeff();
+            if (!(extent > 0.0)) bad("size", "the mesh has zero extent");
+            scale = po.size() / extent;
+          }
+          if (subdiv > 6 || static_cast<long long>(raw.triangles.size()) << (2 * subdiv) > kMaxSubdividedTriangles)
+            bad("subdivide", std::to_string(subdiv) + " levels would give " +
+                                 num(static_cast<double>(raw.triangles.size()) * std::pow(4.0, subdiv)) +
+                                 " triangles (limit " + std::to_string(kMaxSubdividedTriangles) + ")");
+          MeshAsset& a = cache.asset(file, scale, po.centre(), static_cast<int>(subdiv));
+          o.scale = a.scale;
+          o.translation = a.translation;
+          o.reference = a.full;
+          const std::string gkey = std::to_string(static_cast<int>(god_f)) + "|" + std::to_string(po.god().target_triangles());
+          auto& god = a.god[gkey];
+          if (!god) {
+            switch (god_f) {
+              case GF::DECIMATED:
+                god = a.full->triangleCount() <= static_cast<int>(po.god().target_triangles())
+                          ? a.full
+                          : makeBvh(decimate(a.full->mesh(), static_cast<int>(po.god().target_triangles())));
+                break;
+              case GF::CONVEX_HULL: god = makeBvh(convexHull(a.base.vertices)); break;
+              case GF::PRIMITIVE: god = makeBvh(translate(boxMesh(0.5 * a.bounds.extent()), a.bounds.centre())); break;
+              default: god = a.full; break;
+            }
+          }
+          o.god = god;
+          switch (phys_f) {
+            case PF::TRIANGLE_MESH:
+              o.physics.type = PhysicsShapeType::TriangleMesh;
+              o.physics.mesh = a.base;
+              break;
+            case PF::CONVEX_HULL:
+              o.physics.type = PhysicsShapeType::ConvexHull;
+              o.physics.points = cache.hullPoints(a);
+              break;
+            case PF::PRIMITIVE:
+              if (a.bounds.centre().norm() > 1e-9 * a.bounds.extent().maxCoeff())
+                bad("physics", "PRIMITIVE physics of a mesh is its bounding box, which must be centred at the object origin: add `centre: true`");
+              o.physics.type = PhysicsShapeType::Box;
+              o.physics.half_extents = 0.5 * a.bounds.extent();
+              break;
+            default: o.physics.type = PhysicsShapeType::None; break;
+          }
+        } catch (const SceneError&) {
+          throw;
+        } catch (const MeshError& e) {
+          bad("mesh", e.what());
+        } catch (const std::exception& e) {
+          bad("mesh", std::string(po.mesh()) + ": " + e.what());
+        }
+        break;
+      }
+      case pb::SceneObject::kBox:
+      case pb::SceneObject::kSphere:
+      case pb::SceneObject::kCylinder: {
+        std::string key;
+        std::function<TriangleMesh()> make;
+        if (po.has_box()) {
+          const Vec3 e = toVec(po.box().half_extents());
+          if (!e.allFinite() || !(e.minCoeff() >= 1e-6 && e.maxCoeff() <= 100.0))
+            bad("box", "box needs all half_extents in [1e-6, 100] m");
+          o.physics.half_extents = e;
+          o.source = "box " + num(2 * e.x()) + " x " + num(2 * e.y()) + " x " + num(2 * e.z()) + " m";
+          key = "box|" + bits(e.x()) + "|" + bits(e.y()) + "|" + bits(e.z());
+          make = [e] { return boxMesh(e); };
+        } else if (po.has_sphere()) {
+          const double r = po.sphere().radius();
+          if (!(r >= 1e-6 && r <= 100.0)) bad("sphere", "sphere needs a radius in [1e-6, 100] m");
+          o.physics.radius = r;
+          o.source = "sphere r " + num(r) + " m";
+          key = "sphere|" + bits(r);
+          make = [r] { return sphereMesh(r); };
+        } else {
+          const double r = po.cylinder().radius(), h = po.cylinder().half_height();
+          if (!(r >= 1e-6 && r <= 100.0 && h >= 1e-6 && h <= 100.0))
+            bad("cylinder", "cylinder needs radius and half_height in [1e-6, 100] m");
+          o.physics.half_extents = Vec3(r, r, h);
+          o.source = "cylinder r " + num(r) + " m, height " + num(2 * h) + " m";
+          key = "cylinder|" + bits(r) + "|" + bits(h);
+          make = [r, h] { return cylinderMesh(r, h); };
+        }
+        o.god = o.reference = cache.primitive(key, make);
+        switch (phys_f) {
+          case PF::PRIMITIVE:
+            o.physics.type = po.has_box() ? PhysicsShapeType::Box : po.has_sphere() ? PhysicsShapeType::Sphere : PhysicsShapeType::Cylinder;
+            break;
+          case PF::CONVEX_HULL:
+            o.physics.type = PhysicsShapeType::ConvexHull;
+            o.physics.points = o.god->mesh().vertices;
+            break;
+          case PF::TRIANGLE_MESH:
+            o.physics.type = PhysicsShapeType::TriangleMesh;
+            o.physics.mesh = o.god->mesh();
+            break;
+          default: o.physics.type = PhysicsShapeType::None; break;
+        }
+        if (o.physics.type != PhysicsShapeType::Box && o.physics.type != PhysicsShapeType::Cylinder)
+          o.physics.half_extents = Vec3::Zero();
+        if (o.physics.type != PhysicsShapeType::Sphere) o.physics.radius = 0.0;
+        break;
+      }
+      default:
+        bad("", "object '" + o.id + "' has no geometry (mesh, box, sphere or cylinder)");
+    }
+    scene.objects.push_back(std::move(o));
+  }
+  addTotals(&scene);
+  return scene;
+}
+
+Scene loadScene(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in || fs::is_directory(path)) throw SceneError(path + ":0: cannot open scene file");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return parseScene(ss.str(), path, fs::path(path).parent_path().string());
+}
+
+MeshSpec parseMeshSpec(const std::string& arg) {
+  MeshSpec spec;
+  spec.path = arg;
+  const size_t colon = arg.rfind(':');
+  if (colon != std::string::npos) {
+    const std::string tail = arg.substr(colon + 1);
+    const std::string lt = lower(tail);
+    const bool is_path = tail.find('/') != std::string::npos ||
+                         (lt.size() >= 4 && (lt.compare(lt.size() - 4, 4, ".obj") == 0 || lt.compare(lt.size() - 4, 4, ".stl") == 0));
+    if (!is_path) {
+      spec.path = arg.substr(0, colon);
+      size_t used = 0;
+      double size = 0.0;
+      try {
+        size = std::stod(tail, &used);
+      } catch (const std::exception&) {
+        used = 0;
+      }
+      if (tail.empty() || used != tail.size() || !finite(size) || !(size > 0.0) || size > 1e3)
+        throw SceneError("--mesh " + arg + ": size '" + tail + "' must be a positive number of metres (FILE[:SIZE_M], e.g. bunny.obj:0.15)");
+      spec.size = size;
+    }
+  }
+  if (spec.path.empty()) throw SceneError("--mesh " + arg + ": empty mesh path (FILE[:SIZE_M])");
+  return spec;
+}
+
+Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre) {
+  if (specs.empty()) throw SceneError("--mesh: no mesh given");
+  if (!centre.allFinite()) throw SceneError("--mesh: the centre must be finite");
+  Cache cache;
+  Scene scene;
+  std::map<std::string, int> stems;
+  for (const MeshSpec& spec : specs) {
+    if (!(spec.size > 0.0 && finite(spec.size)))
+      throw SceneError("--mesh " + spec.path + ": size must be a positive number of metres, got " + num(spec.size));
+    SceneObject o;
+    try {
+      const TriangleMesh& raw = cache.raw(spec.path);
+      const double extent = meshBounds(raw).extent().maxCoeff();
+      if (!(extent > 0.0)) throw SceneError("--mesh " + spec.path + ": the mesh has zero extent");
+      MeshAsset& a = cache.asset(spec.path, spec.size / extent, true, 0);
+      o.god = o.reference = a.full;
+      o.scale = a.scale;
+      o.translation = a.translation;
+      o.physics.type = PhysicsShapeType::TriangleMesh;
+      o.physics.mesh = a.base;
+    } catch (const MeshError& e) {
+      throw SceneError(e.what());
+    } catch (const SceneError&) {
+      throw;
+    } catch (const std::exception& e) {
+      throw SceneError("--mesh " + spec.path + ": " + e.what());
+    }
+    std::string id = fs::path(spec.path).stem().string();
+    if (id.empty()) id = "mesh";
+    const int n = ++stems[id];
+    if (n > 1) id += "_" + std::to_string(n);
+    o.id = id;
+    o.source = spec.path;
+    o.X_WO.p = centre;
+    o.mass = 0.0;
+    scene.objects.push_back(std::move(o));
+    if (!scene.name.empty()) scene.name += ", ";
+    scene.name += fs::path(spec.path).filename().string();
+  }
+  scene.name = "mesh: " + scene.name;
+  addTotals(&scene);
+  return scene;
+}
+
+}  // namespace godhand

@@ -1,0 +1,59 @@
+// Scene files (protobuf text, schema idl/scene.proto) and the benchmark's `--mesh` scenes, loaded
+// into the immutable Scene of scene.h.
+//
+// Per object (object frame O, metres):
+//   mesh:      vertex_O = scale · v_file + translation, then `subdivide` midpoint levels;
+//              translation = −scale · (bounding-box centre) when `centre: true`, else 0.
+//              god:  FULL → that mesh; DECIMATED → vertex clustering to ~target_triangles;
+//                    CONVEX_HULL → its hull; PRIMITIVE → its bounding box (12 triangles).
+//              reference: the FULL mesh (the same pointer as god when god is FULL).
+//              physics: TRIANGLE_MESH (static only) → the scaled mesh before subdivision (same
+//                    surface); CONVEX_HULL → hull vertices; PRIMITIVE → bounding box (the box must
+//                    be centred at the origin: use `centre: true`); NONE (static only).
+//   box / sphere / cylinder: god = reference = the enclosing tessellation (mesh_io.h); physics
+//              PRIMITIVE (default) → the exact primitive; CONVEX_HULL → tessellation vertices;
+//              TRIANGLE_MESH (static only) → the tessellation; NONE (static only).
+// Objects with the same mesh file, scale, centring, subdivision and god fidelity share their
+// BVHs (a cache inside one load call), so instancing a mesh costs no memory.
+// World position of a mesh-file vertex v: X_WO * (scale · v + translation).
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "scene/scene.h"
+
+namespace godhand {
+
+/// Bad scene file or `--mesh` argument: one line "FILE:LINE: objects[3].mass: reason".
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Loads and validates a scene file (throws SceneError; mesh errors carry the scene location
+/// followed by the mesh file's own "FILE:LINE: reason").
+Scene loadScene(const std::string& path);
+
+/// Same, from text in memory; mesh paths are relative to `base_dir`; `source` names it in errors.
+Scene parseScene(const std::string& text, const std::string& source, const std::string& base_dir);
+
+/// One `--mesh FILE[:SIZE_M]` argument.
+struct MeshSpec {
+  std::string path;
+  double size = 0.15;  ///< largest bounding-box extent after scaling, m
+};
+
+/// "path" or "path:0.2" (the part after the last ':' is the size in metres unless it ends in
+/// .obj / .stl). Throws SceneError on a bad or non-positive size or an empty path.
+MeshSpec parseMeshSpec(const std::string& arg);
+
+/// A scene of the given meshes only: each scaled uniformly so its largest extent is spec.size
+/// and its bounding-box centre placed at `centre` (object frame origin = that centre, X_WO =
+/// {centre, identity}, translation = −scale · bbox centre), static, god FULL, physics
+/// TRIANGLE_MESH, friction 0.5. Ids are the file stems (made unique with _2, _3, ...).
+/// Throws SceneError (with the mesh file's "FILE:LINE: reason").
+Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre);
+
+}  // namespace godhand

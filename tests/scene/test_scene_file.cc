@@ -1,0 +1,351 @@
+// Scene files (idl/scene.proto text): fields, defaults, sharing, every error with its line, the
+// shipped scenes, and the benchmark's --mesh scenes.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <string>
+
+#include <unistd.h>
+
+#include "scene/mesh_io.h"
+#include "scene/scene_file.h"
+
+namespace godhand {
+namespace {
+
+namespace fs = std::filesystem;
+
+const char* const kCubeObj =
+    "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
+    "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 3 4 8 7\nf 1 5 8 4\nf 2 3 7 6\n";
+
+class TempDir {
+ public:
+  TempDir() {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() / ("godhand_scene_" + std::string(info->name()) + "_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    write("cube.obj", kCubeObj);
+  }
+  ~TempDir() { fs::remove_all(dir_); }
+  std::string write(const std::string& name, const std::string& text) const {
+    const std::string p = (dir_ / name).string();
+    std::ofstream(p, std::ios::binary) << text;
+    return p;
+  }
+  std::string path(const std::string& name) const { return (dir_ / name).string(); }
+
+ private:
+  fs::path dir_;
+};
+
+std::string sceneError(const TempDir& tmp, const std::string& text) {
+  const std::string p = tmp.write("s.pbtxt", text);
+  try {
+    loadScene(p);
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+void expectError(const TempDir& tmp, const std::string& text, const std::string& prefix, const std::string& what) {
+  const std::string msg = sceneError(tmp, text);
+  SCOPED_TRACE(text);
+  EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+  const std::string full = tmp.path("s.pbtxt") + ":" + prefix;
+  EXPECT_EQ(msg.rfind(full, 0), 0u) << "got: " << msg << "\nexpected prefix: " << full;
+  EXPECT_NE(msg.find(what), std::string::npos) << "got: " << msg << "\nexpected: " << what;
+}
+
+const SceneObject& byId(const Scene& s, const std::string& id) {
+  for (const SceneObject& o : s.objects)
+    if (o.id == id) return o;
+  throw std::runtime_error("no object " + id);
+}
+
+/// World-aligned box of an object's God mesh at its initial pose.
+geo::Aabb worldBox(const SceneObject& o) {
+  geo::Aabb b;
+  for (const Vec3& v : o.god->mesh().vertices) b.grow(o.X_WO * v);
+  return b;
+}
+
+TEST(SceneFile, FieldsDefaultsAndSharing) {
+  TempDir tmp;
+  const std::string text = R"(
+name: "unit"
+objects { id: "static_cube" mesh: "cube.obj" }
+objects { id: "dyn_cube" mesh: "cube.obj" mass: 2 friction: 0.9 restitution: 0.25
+          position { x: 1 y: 2 z: 3 } orientation { w: 0 x: 0 y: 0 z: 2 } }
+objects { id: "half" mesh: "cube.obj" size: 0.5 centre: true subdivide: 1 physics { fidelity: PRIMITIVE } }
+objects { id: "hull" mesh: "cube.obj" scale: 2 god { fidelity: CONVEX_HULL } physics { fidelity: NONE } }
+objects { id: "dec" mesh: "cube.obj" scale: 2 subdivide: 3 god { fidelity: DECIMATED target_triangles: 100 } }
+objects { id: "bbox" mesh: "cube.obj" scale: 2 god { fidelity: PRIMITIVE } }
+objects { id: "box" box { half_extents { x: 0.1 y: 0.2 z: 0.3 } } mass: 1 }
+objects { id: "ball" sphere { radius: 0.05 } mass: 0.5 physics { fidelity: CONVEX_HULL } }
+objects { id: "can" cylinder { radius: 0.02 half_height: 0.05 } physics { fidelity: TRIANGLE_MESH } }
+objects { id: "ball2" sphere { radius: 0.05 } }
+)";
+  const Scene s = loadScene(tmp.write("scene.pbtxt", text));
+  EXPECT_EQ(s.name, "unit");
+  EXPECT_EQ(s.gravity, Vec3(0, 0, -9.81));
+  ASSERT_EQ(s.objects.size(), 10u);
+  for (size_t i = 0; i < s.objects.size(); ++i) EXPECT_EQ(s.objects[i].index, static_cast<int>(i));
+
+  const SceneObject& sc = byId(s, "static_cube");
+  EXPECT_EQ(sc.mass, 0.0);
+  EXPECT_EQ(sc.friction, 0.5);
+  EXPECT_EQ(sc.restitution, 0.0);
+  EXPECT_EQ(sc.god, sc.reference);
+  EXPECT_EQ(sc.god->triangleCount(), 12);
+  EXPECT_EQ(sc.physics.type, PhysicsShapeType::TriangleMesh);
+  EXPECT_EQ(sc.physics.mesh.triangleCount(), 12);
+  EXPECT_EQ(sc.scale, 1.0);
+  EXPECT_EQ(sc.source, tmp.path("cube.obj"));
+
+  const SceneObject& dc = byId(s, "dyn_cube");
+  EXPECT_EQ(dc.god, sc.god);  // same file, scale, fidelity: one BVH
+  EXPECT_EQ(dc.physics.type, PhysicsShapeType::ConvexHull);
+  EXPECT_EQ(dc.physics.points.size(), 8u);
+  EXPECT_EQ(dc.mass, 2.0);
+  EXPECT_EQ(dc.friction, 0.9);
+  EXPECT_EQ(dc.restitution, 0.25);
+  EXPECT_EQ(dc.X_WO.p, Vec3(1, 2, 3));
+  EXPECT_NEAR(dc.X_WO.q.z(), 1.0, 1e-15);  // normalised
+
+  const SceneObject& half = byId(s, "half");
+  EXPECT_DOUBLE_EQ(half.scale, 0.5);
+  EXPECT_EQ(half.translation, Vec3(-0.25, -0.25, -0.25));
+  EXPECT_EQ(half.god->triangleCount(), 48);
+  EXPECT_EQ(half.physics.type, PhysicsShapeType::Box);
+  EXPECT_EQ(half.physics.half_extents, Vec3(0.25, 0.25, 0.25));
+  EXPECT_EQ(half.god->bounds().lo, Vec3(-0.25, -0.25, -0.25));
+  EXPECT_EQ(half.god->bounds().hi, Vec3(0.25, 0.25, 0.25));
+
+  const SceneObject& hull = byId(s, "hull");
+  EXPECT_NE(hull.god, hull.reference);
+  EXPECT_EQ(hull.reference->triangleCount(), 12);
+  EXPECT_NEAR(signedVolume(hull.god->mesh()), 8.0, 1e-12);
+  EXPECT_EQ(hull.physics.type, PhysicsShapeType::None);
+
+  const SceneObject& dec = byId(s, "dec");
+  EXPECT_EQ(dec.reference->triangleCount(), 12 * 64);
+  EXPECT_LT(dec.god->triangleCount(), 12 * 64);
+  EXPECT_EQ(dec.physics.mesh.triangleCount(), 12);  // Bullet gets the unsubdivided surface
+
+  const SceneObject& bbox = byId(s, "bbox");
+  EXPECT_EQ(bbox.god->triangleCount(), 12);
+  EXPECT_EQ(bbox.reference, hull.reference);  // same file and scale
+  EXPECT_EQ(bbox.god->bounds().lo, Vec3(0, 0, 0));
+  EXPECT_EQ(bbox.god->bounds().hi, Vec3(2, 2, 2));
+
+  const SceneObject& box = byId(s, "box");
+  EXPECT_EQ(box.physics.type, PhysicsShapeType::Box);
+  EXPECT_EQ(box.physics.half_extents, Vec3(0.1, 0.2, 0.3));
+  EXPECT_EQ(box.god->triangleCount(), 12);
+  EXPECT_EQ(box.god, box.reference);
+
+  const SceneObject& ball = byId(s, "ball");
+  EXPECT_EQ(ball.physics.type, PhysicsShapeType::ConvexHull);
+  EXPECT_EQ(ball.physics.points.size(), ball.god->mesh().vertices.size());
+  EXPECT_EQ(ball.god->triangleCount(), 1280);
+  EXPECT_EQ(byId(s, "ball2").god, ball.god);  // identical primitives share
+  EXPECT_EQ(byId(s, "ball2").physics.type, PhysicsShapeType::Sphere);
+  EXPECT_EQ(byId(s, "ball2").physics.radius, 0.05);
+
+  const SceneObject& can = byId(s, "can");
+  EXPECT_EQ(can.physics.type, PhysicsShapeType::TriangleMesh);
+  EXPECT_EQ(can.physics.mesh.triangleCount(), 128);
+
+  long long god = 0, ref = 0;
+  for (const SceneObject& o : s.objects) { god += o.god->triangleCount(); ref += o.reference->triangleCount(); }
+  EXPECT_EQ(s.god_triangles, god);
+  EXPECT_EQ(s.reference_triangles, ref);
+}
+
+TEST(SceneFile, ErrorsNameFileLineAndField) {
+  TempDir tmp;
+  const std::string ok = "objects { id: \"t\" box { half_extents { x: 1 y: 1 z: 1 } } }\n";
+  expectError(tmp, "objects {\n  id: \"a\"\n  box { half_extents { x: 1 y: 1 z: 1 } }\n  mass: -1\n}\n",
+              "4: objects[0].mass: ", "mass must lie in [0, 1e6] kg");
+  expectError(tmp, "objects {\n  id: \"a\"\n  box { half_extents { x: 1 y: 1 z: 1 } }\n  mass: nan\n}\n",
+              "4: objects[0].mass: ", "mass");
+  expectError(tmp, ok + "objects {\n  id: \"t\"\n  sphere { radius: 1 }\n}\n",
+              "3: objects[1].id: ", "duplicate object id 't'");
+  expectError(tmp, ok + "objects {\n  id: \"m\"\n\n  mesh: \"missing.obj\"\n}\n",
+              "5: objects[1].mesh: " + tmp.path("missing.obj") + ":0: ", "cannot open mesh file");
+  expectError(tmp, "objects {\n  id: \"d\"\n  mesh: \"cube.obj\"\n  mass: 1\n  physics { fidelity: TRIANGLE_MESH }\n}\n",
+              "5: objects[0].physics: ", "static objects only");
+  expectError(tmp, "objects {\n  id: \"d\"\n  mesh: \"cube.obj\"\n  mass: 1\n  physics { fidelity: NONE }\n}\n",
+              "5: objects[0].physics: ", "needs a physics shape");
+  expectError(tmp, "objects {\n  id: \"q\"\n  box { half_extents { x: 1 y: 1 z: 1 } }\n  orientation { w: 0 }\n}\n",
+              "4: objects[0].orientation: ", "non-zero quaternion");
+  expectError(tmp, "objects {\n  id: \"q\"\n  box { half_extents { x: 1 y: 1 z: 1 } }\n  orientation { w: inf }\n}\n",
+              "4: objects[0].orientation: ", "finite");
+  expectError(tmp, "objects {\n  id: \"b\"\n  box { half_extents { x: 1 y: 0 z: 1 } }\n}\n",
+              "3: objects[0].box: ", "half_extents");
+  expectError(tmp, "objects {\n  id: \"b\"\n  sphere { radius: -1 }\n}\n", "3: objects[0].sphere: ", "radius");
+  expectError(tmp, "objects {\n  id: \"b\"\n  cylinder { radius: 1 }\n}\n", "3: objects[0].cylinder: ", "half_height");
+  expectError(tmp, "objects {\n  id: \"b\"\n  sphere { radius: 1 }\n  scale: 2\n}\n", "4: objects[0].scale: ", "mesh objects only");
+  expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  size: -2\n}\n", "4: objects[0].size: ", "size must lie");
+  expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  scale: 0\n}\n", "4: objects[0].scale: ", "scale must lie");
+  expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  subdivide: 9\n}\n", "4: objects[0].subdivide: ", "limit");
+  expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  god { fidelity: DECIMATED }\n}\n",
+              "4: objects[0].god: ", "target_triangles >= 4");
+  expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  physics { fidelity: PRIMITIVE }\n}\n",
+              "4: objects[0].physics: ", "centre: true");
+  expectError(tmp, "objects {\n  id: \"b\"\n  box { half_extents { x: 1 y: 1 z: 1 } }\n  restitution: 2\n}\n",
+              "4: objects[0].restitution: ", "[0, 1]");
+  expectError(tmp, "objects {\n  id: \"b\"\n  box { half_extents { x: 1 y: 1 z: 1 } }\n  position { x: nan }\n}\n",
+              "4: objects[0].position: ", "finite");
+  expectError(tmp, ok + "\nobjects {\n  id: \"nothing\"\n  mass: 1\n}\n", "3: objects[1]: ", "has no geometry");
+  expectError(tmp, "objects {\n  box { half_extents { x: 1 y: 1 z: 1 } }\n}\n", "1: objects[0].id: ", "needs an id");
+  expectError(tmp, "name: \"x\"\n", "1: objects: ", "at least one object");
+  expectError(tmp, "gravity { z: nan }\n" + ok, "1: gravity: ", "finite");
+  expectError(tmp, ok + "objects {\n  id: \"x\"\n  mas: 1\n}\n", "4:", "no field named \"mas\"");  // protobuf syntax error: line:column
+  tmp.write("nan.obj", "v 0 0 0\nv 0 nan 0\nv 0 0 1\nf 1 2 3\n");
+  expectError(tmp, "objects {\n  id: \"n\"\n  mesh: \"nan.obj\"\n}\n",
+              "3: objects[0].mesh: " + tmp.path("nan.obj") + ":2: ", "non-finite");
+  // A missing scene file.
+  try {
+    loadScene(tmp.path("none.pbtxt"));
+    ADD_FAILURE() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()), tmp.path("none.pbtxt") + ":0: cannot open scene file");
+  }
+}
+
+TEST(SceneFile, CommittedBadSceneReportsItsLine) {
+  try {
+    loadScene(std::string(GODHAND_TEST_DATA_DIR) + "/scene/bad_mass.pbtxt");
+    ADD_FAILURE() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("bad_mass.pbtxt:8: objects[1].mass: mass must lie in [0, 1e6] kg"), std::string::npos) << e.what();
+  }
+}
+
+TEST(ShippedScenes, DefaultSceneLoadsWithAbout100kTriangles) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Scene s = loadScene(std::string(GODHAND_DEPLOY_DIR) + "/scenes/default.pbtxt");
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("[figure] default scene: %zu objects, %lld God triangles, %lld reference triangles, load %.0f ms\n",
+              s.objects.size(), s.god_triangles, s.reference_triangles, ms);
+  for (const SceneObject& o : s.objects) {
+    const geo::Aabb b = worldBox(o);
+    std::printf("[figure]   %-12s mass %.2f kg  god %6d tri  ref %6d tri  physics %d  world box [%.3f %.3f %.3f]..[%.3f %.3f %.3f]\n",
+                o.id.c_str(), o.mass, o.god->triangleCount(), o.reference->triangleCount(), static_cast<int>(o.physics.type),
+                b.lo.x(), b.lo.y(), b.lo.z(), b.hi.x(), b.hi.y(), b.hi.z());
+  }
+  EXPECT_EQ(s.name, "default");
+  ASSERT_EQ(s.objects.size(), 8u);
+  EXPECT_GT(s.god_triangles, 90000);
+  EXPECT_LT(s.god_triangles, 110000);
+  EXPECT_EQ(byId(s, "fandisk").god, byId(s, "fandisk_2").god);
+  EXPECT_EQ(byId(s, "bunny").god, byId(s, "bunny").reference);
+  EXPECT_NEAR(byId(s, "small_bunny").god->triangleCount(), 5000, 1000);
+  EXPECT_EQ(byId(s, "table").physics.type, PhysicsShapeType::Box);
+  EXPECT_EQ(byId(s, "bunny").physics.type, PhysicsShapeType::TriangleMesh);
+  EXPECT_EQ(byId(s, "small_bunny").physics.type, PhysicsShapeType::ConvexHull);
+  EXPECT_EQ(byId(s, "light_box").physics.type, PhysicsShapeType::Box);
+  EXPECT_EQ(byId(s, "ball").physics.type, PhysicsShapeType::Sphere);
+  EXPECT_EQ(byId(s, "can").physics.type, PhysicsShapeType::Cylinder);
+  EXPECT_NEAR(byId(s, "fandisk").god->bounds().extent().maxCoeff(), 0.15, 1e-12);
+
+  // Everything rests on the table top (z = 0.05), inside its footprint, without overlaps.
+  const geo::Aabb table = worldBox(byId(s, "table"));
+  EXPECT_NEAR(table.hi.z(), 0.05, 1e-12);
+  for (const SceneObject& o : s.objects) {
+    if (o.id == "table") continue;
+    const geo::Aabb b = worldBox(o);
+    EXPECT_NEAR(b.lo.z(), 0.05, 1e-3) << o.id;
+    EXPECT_GE(b.lo.z(), 0.05 - 0.006 * 0.03) << o.id;  // tessellations enclose: the ball's is 0.45 % larger
+    EXPECT_TRUE((b.lo.head<2>().array() >= table.lo.head<2>().array()).all() && (b.hi.head<2>().array() <= table.hi.head<2>().array()).all()) << o.id;
+    for (const SceneObject& q : s.objects)
+      if (q.index > o.index && q.id != "table") {
+        EXPECT_FALSE(b.overlaps(worldBox(q))) << o.id << " overlaps " << q.id;
+      }
+  }
+  // A ring around the recorded single-hand envelope (pinch, HandSplay: palm and every finger
+  // joint over all frames, converted to metres, +Z up), inflated by 1 cm for the hand's radii:
+  // no object inside it, the meshes within 3 cm of it.
+  geo::Aabb hand;
+  hand.grow(Vec3(-0.084, -0.102, 0.107));
+  hand.grow(Vec3(0.115, 0.090, 0.230));
+  hand = hand.inflated(0.01);
+  for (const SceneObject& o : s.objects) EXPECT_FALSE(worldBox(o).overlaps(hand)) << o.id;
+  for (const char* id : {"bunny", "fandisk", "fandisk_2"}) EXPECT_TRUE(worldBox(byId(s, id)).overlaps(hand.inflated(0.03))) << id;
+}
+
+TEST(ShippedScenes, StressSceneLoadsWithAbout1MTriangles) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const Scene s = loadScene(std::string(GODHAND_DEPLOY_DIR) + "/scenes/stress.pbtxt");
+  const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("[figure] stress scene: %zu objects, %lld God triangles, load %.0f ms (parse, subdivide, BVH build)\n",
+              s.objects.size(), s.god_triangles, ms);
+  EXPECT_GT(s.god_triangles, 1000000);
+  EXPECT_LT(s.god_triangles, 1200000);
+  EXPECT_EQ(byId(s, "bunny").physics.mesh.triangleCount() * 16, byId(s, "bunny").god->triangleCount());
+}
+
+TEST(MeshScene, ScalesAndCentresExactly) {
+  const std::string bunny = std::string(GODHAND_DEPLOY_DIR) + "/meshes/stanford-bunny.obj";
+  const std::string fandisk = std::string(GODHAND_DEPLOY_DIR) + "/meshes/fandisk.obj";
+  const Vec3 centre(0.1, -0.2, 0.3);
+  const Scene s = meshScene({parseMeshSpec(bunny + ":0.2"), parseMeshSpec(bunny + ":0.2"), parseMeshSpec(fandisk)}, centre);
+  ASSERT_EQ(s.objects.size(), 3u);
+  EXPECT_EQ(s.objects[0].id, "stanford-bunny");
+  EXPECT_EQ(s.objects[1].id, "stanford-bunny_2");
+  EXPECT_EQ(s.objects[2].id, "fandisk");
+  EXPECT_EQ(s.objects[0].god, s.objects[1].god);
+  const double sizes[3] = {0.2, 0.2, 0.15};
+  for (size_t i = 0; i < 3; ++i) {
+    const SceneObject& o = s.objects[i];
+    const geo::Aabb b = worldBox(o);
+    EXPECT_NEAR((b.centre() - centre).norm(), 0.0, 1e-15) << o.id;
+    EXPECT_NEAR(b.extent().maxCoeff(), sizes[i], 1e-15) << o.id;
+    EXPECT_EQ(o.mass, 0.0);
+    EXPECT_EQ(o.god, o.reference);
+    EXPECT_EQ(o.physics.type, PhysicsShapeType::TriangleMesh);
+    EXPECT_EQ(o.X_WO.p, centre);
+    // vertex_W = X_WO * (scale * v_file + translation)
+    const geo::TriangleMesh raw = loadMeshFile(i < 2 ? bunny : fandisk);
+    EXPECT_NEAR((o.god->mesh().vertices[5] - (o.scale * raw.vertices[5] + o.translation)).norm(), 0.0, 1e-15);
+    std::printf("[figure] --mesh %s: scale %.6g, translation (%.6g, %.6g, %.6g), %d triangles\n", o.id.c_str(), o.scale,
+                o.translation.x(), o.translation.y(), o.translation.z(), o.god->triangleCount());
+  }
+  EXPECT_EQ(s.god_triangles, 2LL * s.objects[0].god->triangleCount() + s.objects[2].god->triangleCount());
+  try {
+    meshScene({parseMeshSpec("/nonexistent/x.obj:0.1")}, centre);
+    ADD_FAILURE() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("/nonexistent/x.obj:0: cannot open mesh file", 0), 0u) << e.what();
+  }
+}
+
+TEST(MeshScene, ParseMeshSpec) {
+  EXPECT_EQ(parseMeshSpec("a.obj").path, "a.obj");
+  EXPECT_EQ(parseMeshSpec("a.obj").size, 0.15);
+  EXPECT_EQ(parseMeshSpec("dir/a.stl:0.2").path, "dir/a.stl");
+  EXPECT_EQ(parseMeshSpec("dir/a.stl:0.2").size, 0.2);
+  EXPECT_EQ(parseMeshSpec("x:y/a.obj").path, "x:y/a.obj");
+  EXPECT_EQ(parseMeshSpec("odd:name.OBJ").path, "odd:name.OBJ");
+  EXPECT_EQ(parseMeshSpec("a.obj:1e-1").size, 0.1);
+  for (const char* bad : {"a.obj:abc", "a.obj:", "a.obj:-1", "a.obj:0", "a.obj:0.2x", "a.obj:nan", ":0.2", ""}) {
+    try {
+      parseMeshSpec(bad);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find("--mesh"), std::string::npos) << e.what();
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace godhand
