@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # godhand's one entry point for people and CI: installs missing Debian packages, builds, runs.
-#   deploy/run.sh demo [demo args]   build, then run the in-process demonstration
+#   deploy/run.sh demo [bench args]  build, then run the whole method in one process (godhand-bench)
+#                                    on the default scene with the bundled real Leap recordings
 #   deploy/run.sh test               build, run every test (ctest), then the core tests again
-#                                    under AddressSanitizer + UndefinedBehaviorSanitizer
+#                                    and every area's unit tests under AddressSanitizer +
+#                                    UndefinedBehaviorSanitizer
 # Warnings are errors when CI=true. Build trees: build/ (RelWithDebInfo), build-asan/.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -27,8 +29,13 @@ mkdir -p build
 configure build
 case $mode in
   demo)
-    build build godhand-demo
-    exec build/bin/godhand-demo "$@"
+    build build godhand-bench godhand-demo
+    status=0
+    for rec in pinch confidence2-49fps; do
+      echo "== godhand-bench: deploy/recordings/$rec.json on deploy/scenes/default.pbtxt =="
+      build/bin/godhand-bench --recording deploy/recordings/$rec.json --quiet --check "$@" || status=1
+    done
+    exit $status
     ;;
   test)
     build build
@@ -38,8 +45,9 @@ case $mode in
     configure build-asan -DGODHAND_SANITIZE=ON -DGODHAND_BENCHMARKS=OFF -DCMAKE_BUILD_TYPE=Debug \
       -DCMAKE_CXX_FLAGS="-D_GLIBCXX_ASSERTIONS" \
       -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g"
-    build build-asan godhand_core_tests godhand_alloc_test
+    build build-asan godhand_core_tests godhand_alloc_test godhand_geometry_tests godhand_scene_tests \
+      godhand_physics_tests godhand_bridges_tests godhand_pipeline_tests
     ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-      ctest --test-dir build-asan --output-on-failure -j2 --timeout 900 -L core
+      ctest --test-dir build-asan --output-on-failure -j2 --timeout 900 -LE programs
     ;;
 esac

@@ -51,7 +51,8 @@ const char* kUsage =
     "  --json OUT            write the report as JSON\n"
     "  --poses OUT.csv       write every God object's world pose every frame\n"
     "  --quiet               no progress lines\n"
-    "Exit status: 0 ok, 2 bad arguments or input (one line on stderr).\n";
+    "  --check               exit 1 unless penetration <= margin, joint gap <= 1e-6 m and no solver failures\n"
+    "Exit status: 0 ok, 1 --check failed, 2 bad arguments or input (one line on stderr).\n";
 
 struct Args {
   std::string recording, scene, json, poses;
@@ -61,7 +62,7 @@ struct Args {
   SolverKind solver = SolverKind::Exact;
   int pgs_iterations = 30;
   long frames = -1;
-  bool physics = true, quiet = false;
+  bool physics = true, quiet = false, check = false;
 };
 
 [[noreturn]] void fail(const std::string& msg) {
@@ -105,6 +106,7 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--frames") a.frames = parseCount(f, value(), 1, 1L << 40);
     else if (f == "--no-physics") a.physics = false;
     else if (f == "--quiet") a.quiet = true;
+    else if (f == "--check") a.check = true;
     else fail("unknown argument '" + f + "' (see --help)");
   }
   if (a.recording.empty()) fail("--recording FILE is required (see --help)");
@@ -353,6 +355,12 @@ int main(int argc, char** argv) {
     std::ofstream out(args.json);
     out << j.dump(2) << "\n";
     if (!out) fail(args.json + ": cannot write");
+  }
+  if (args.check) {
+    const bool ok = pen_max <= params.step.rows.margin && gap_max <= 1e-6 && c.solver_failures == 0;
+    std::printf("check: %s (penetration <= %.1e m, joint gap <= 1e-6 m, no solver failures)\n", ok ? "ok" : "FAILED",
+                params.step.rows.margin);
+    return ok ? 0 : 1;
   }
   return 0;
 }
