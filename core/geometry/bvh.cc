@@ -27,7 +27,7 @@ struct CoreM {
   ShapeType type = ShapeType::Sphere;
   Vec3 p0 = Vec3::Zero(), p1 = Vec3::Zero();  ///< segment (sphere: p0 = p1 = centre)
   Vec3 d = Vec3::Zero();                      ///< p1 − p0
-  double dd = 0.0;                            ///< |d|²
+  double inv_dd = 0.0;                        ///< 1/|d|² (0 for a point segment)
   Mat3 R_MB = Mat3::Identity();
   Vec3 e = Vec3::Zero();                      ///< box half extents
   Aabb box;                                   ///< of the core
@@ -42,7 +42,7 @@ struct CoreM {
         p0 = X_MB.p - h_M;
         p1 = X_MB.p + h_M;
         d = p1 - p0;
-        dd = d.squaredNorm();
+        inv_dd = d.squaredNorm() > 0.0 ? 1.0 / d.squaredNorm() : 0.0;
         break;
       }
       case ShapeType::Box:
@@ -68,7 +68,7 @@ struct CoreM {
       case ShapeType::Sphere: w = x - p0; break;
       case ShapeType::Capsule: {
         const Vec3 v = x - p0;
-        const double s = dd > 0.0 ? std::clamp(v.dot(d) / dd, 0.0, 1.0) : 0.0;
+        const double s = std::clamp(v.dot(d) * inv_dd, 0.0, 1.0);
         w = v - s * d;
         break;
       }
@@ -86,10 +86,17 @@ struct CoreM {
 
   /// A lower bound of the distance from the core to any point of box b: the larger of the
   /// box–box gap and the first-order (convexity) bound at the box centre, f(c) − Σ|u_i| e_i.
-  double lowerBound(const Aabb& b) const {
+  /// Distance between the core's box and b (a lower bound of the core distance to b).
+  double gapBound(const Aabb& b) const {
     const Vec3 gap = (b.lo - box.hi).cwiseMax(box.lo - b.hi).cwiseMax(0.0);
-    const double lb = std::sqrt(gap.squaredNorm());
-    if (type == ShapeType::Sphere) return lb;  // exact point–box distance
+    return std::sqrt(gap.squaredNorm());
+  }
+
+  /// The box–box gap and the first-order (convexity) bound at the box centre,
+  /// f(c) − Σ|u_i| e_i; the second is skipped when the gap already exceeds `cutoff`.
+  double lowerBound(const Aabb& b, double cutoff = std::numeric_limits<double>::infinity()) const {
+    const double lb = gapBound(b);
+    if (type == ShapeType::Sphere || lb > cutoff) return lb;  // sphere: exact point–box distance
     const Vec3 bc = b.centre();
     Vec3 u;
     const double f = pointDistance(bc, &u);
@@ -117,10 +124,19 @@ double solidAngle(const Vec3& a, const Vec3& b, const Vec3& c) {
 
 }  // namespace
 
+/// Per-triangle quantities the build needs, computed once.
+struct BuildData {
+  std::vector<Aabb> boxes;
+  std::vector<Vec3> centroids;
+  std::vector<Vec3> area_vectors;  ///< ½ (b − a) × (c − a)
+  std::vector<double> areas;
+};
+
 struct MeshBvh::Impl {
   /// Builds the subtree over order_[begin, end); returns its node index.
-  static int build(MeshBvh& bvh, int begin, int end, int depth, const std::vector<Vec3>& centroids,
-                   const std::vector<Aabb>& boxes) {
+  static int build(MeshBvh& bvh, int begin, int end, int depth, const BuildData& data) {
+    const std::vector<Vec3>& centroids = data.centroids;
+    const std::vector<Aabb>& boxes = data.boxes;
     const int index = static_cast<int>(bvh.nodes_.size());
     bvh.nodes_.emplace_back();
     Aabb box, cbox;
@@ -129,7 +145,7 @@ struct MeshBvh::Impl {
       box.grow(boxes[static_cast<size_t>(t)]);
       cbox.grow(centroids[static_cast<size_t>(t)]);
     }
-    fillDipole(bvh, index, begin, end, centroids);
+    fillDipole(bvh, index, begin, end, data);
     bvh.nodes_[static_cast<size_t>(index)].box = box;
     const int n = end - begin;
     if (n <= kLeafSize) {
@@ -149,8 +165,8 @@ struct MeshBvh::Impl {
         return centroids[static_cast<size_t>(x)][axis] < centroids[static_cast<size_t>(y)][axis];
       });
     }
-    const int left = build(bvh, begin, begin + mid, depth + 1, centroids, boxes);
-    const int right = build(bvh, begin + mid, end, depth + 1, centroids, boxes);
+    const int left = build(bvh, begin, begin + mid, depth + 1, data);
+    const int right = build(bvh, begin + mid, end, depth + 1, data);
     Node& node = bvh.nodes_[static_cast<size_t>(index)];
     node.first = left;
     node.right = right;
@@ -209,31 +225,27 @@ struct MeshBvh::Impl {
     return static_cast<int>(mid - first);
   }
 
-  /// Area-weighted centroid, summed area vector and radius of the node's triangles.
-  static void fillDipole(MeshBvh& bvh, int index, int begin, int end, const std::vector<Vec3>& centroids) {
+  /// Area-weighted centroid, summed area vector, second moment and radius of the node's triangles.
+  static void fillDipole(MeshBvh& bvh, int index, int begin, int end, const BuildData& data) {
     Vec3 normal = Vec3::Zero(), weighted = Vec3::Zero(), plain = Vec3::Zero();
     double area = 0.0;
     for (int i = begin; i < end; ++i) {
-      const int t = bvh.order_[static_cast<size_t>(i)];
-      const Vec3 a = bvh.mesh_.vertex(t, 0), b = bvh.mesh_.vertex(t, 1), c = bvh.mesh_.vertex(t, 2);
-      const Vec3 an = 0.5 * (b - a).cross(c - a);
-      const double ar = an.norm();
-      normal += an;
-      weighted += ar * centroids[static_cast<size_t>(t)];
-      plain += centroids[static_cast<size_t>(t)];
-      area += ar;
+      const auto t = static_cast<size_t>(bvh.order_[static_cast<size_t>(i)]);
+      normal += data.area_vectors[t];
+      weighted += data.areas[t] * data.centroids[t];
+      plain += data.centroids[t];
+      area += data.areas[t];
     }
     const Vec3 centre = area > 0.0 ? Vec3(weighted / area) : Vec3(plain / (end - begin));
     double radius2 = 0.0;
-    for (int i = begin; i < end; ++i) {
-      const int t = bvh.order_[static_cast<size_t>(i)];
-      for (int k = 0; k < 3; ++k) radius2 = std::max(radius2, (bvh.mesh_.vertex(t, k) - centre).squaredNorm());
-    }
     Mat3 moment = Mat3::Zero();
     for (int i = begin; i < end; ++i) {
       const int t = bvh.order_[static_cast<size_t>(i)];
-      const Vec3 a = bvh.mesh_.vertex(t, 0), b = bvh.mesh_.vertex(t, 1), c = bvh.mesh_.vertex(t, 2);
-      moment += (centroids[static_cast<size_t>(t)] - centre) * (0.5 * (b - a).cross(c - a)).transpose();
+      const Aabb& b = data.boxes[static_cast<size_t>(t)];
+      // Farthest corner of the triangle's box: cheap, conservative radius (only used by the
+      // far-field test, where a larger radius just means more exact evaluation).
+      radius2 = std::max(radius2, (b.lo - centre).cwiseAbs().cwiseMax((b.hi - centre).cwiseAbs()).squaredNorm());
+      moment += (data.centroids[static_cast<size_t>(t)] - centre) * data.area_vectors[static_cast<size_t>(t)].transpose();
     }
     if (bvh.dipole_moment_.size() <= static_cast<size_t>(index)) bvh.dipole_moment_.resize(static_cast<size_t>(index) + 1);
     bvh.dipole_moment_[static_cast<size_t>(index)] = moment;
@@ -260,19 +272,27 @@ MeshBvh::MeshBvh(TriangleMesh mesh) : mesh_(std::move(mesh)) {
     }
   }
   const int n = mesh_.triangleCount();
-  std::vector<Aabb> boxes(static_cast<size_t>(n));
-  std::vector<Vec3> centroids(static_cast<size_t>(n));
+  BuildData data;
+  data.boxes.resize(static_cast<size_t>(n));
+  data.centroids.resize(static_cast<size_t>(n));
+  data.area_vectors.resize(static_cast<size_t>(n));
+  data.areas.resize(static_cast<size_t>(n));
   for (int t = 0; t < n; ++t) {
-    Aabb b;
-    for (int k = 0; k < 3; ++k) b.grow(mesh_.vertex(t, k));
-    boxes[static_cast<size_t>(t)] = b;
-    centroids[static_cast<size_t>(t)] = (mesh_.vertex(t, 0) + mesh_.vertex(t, 1) + mesh_.vertex(t, 2)) / 3.0;
+    const auto i = static_cast<size_t>(t);
+    const Vec3 a = mesh_.vertex(t, 0), b = mesh_.vertex(t, 1), c = mesh_.vertex(t, 2);
+    data.boxes[i].grow(a);
+    data.boxes[i].grow(b);
+    data.boxes[i].grow(c);
+    data.centroids[i] = (a + b + c) / 3.0;
+    data.area_vectors[i] = 0.5 * (b - a).cross(c - a);
+    data.areas[i] = data.area_vectors[i].norm();
   }
+  const std::vector<Aabb>& boxes = data.boxes;
   order_.resize(static_cast<size_t>(n));
   std::iota(order_.begin(), order_.end(), 0);
   nodes_.reserve(static_cast<size_t>(2 * (n / 2 + 1)));
   dipole_moment_.reserve(nodes_.capacity());
-  Impl::build(*this, 0, n, 0, centroids, boxes);
+  Impl::build(*this, 0, n, 0, data);
   tri_boxes_.resize(static_cast<size_t>(n));
   tri_vertices_.resize(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) {
@@ -323,7 +343,7 @@ bool MeshBvh::closest(const Shape& shape, const Pose& X_MB, double max_distance,
     const Node& node = nodes_[static_cast<size_t>(stack[sp])];
     if (node.count > 0) {
       for (int i = node.first; i < node.first + node.count; ++i) {
-        if (core.lowerBound(tri_boxes_[static_cast<size_t>(i)]) > best) continue;
+        if (core.gapBound(tri_boxes_[static_cast<size_t>(i)]) > best) continue;
         const auto& v = tri_vertices_[static_cast<size_t>(i)];
         if (core.lowerBound(v) > best) continue;
         const std::array<Vec3, 3> abc_B = {R_BM * (v[0] - X_MB.p), R_BM * (v[1] - X_MB.p), R_BM * (v[2] - X_MB.p)};
@@ -339,8 +359,8 @@ bool MeshBvh::closest(const Shape& shape, const Pose& X_MB, double max_distance,
       }
       continue;
     }
-    const double lb_left = core.lowerBound(nodes_[static_cast<size_t>(node.first)].box);
-    const double lb_right = core.lowerBound(nodes_[static_cast<size_t>(node.right)].box);
+    const double lb_left = core.lowerBound(nodes_[static_cast<size_t>(node.first)].box, best);
+    const double lb_right = core.lowerBound(nodes_[static_cast<size_t>(node.right)].box, best);
     // Nearer child on top of the stack.
     const bool left_first = lb_left <= lb_right;
     const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
@@ -366,10 +386,10 @@ void MeshBvh::near(const Shape& shape, const Pose& X_MB, double max_distance, st
   stack[sp++] = 0;
   while (sp > 0) {
     const Node& node = nodes_[static_cast<size_t>(stack[--sp])];
-    if (core.lowerBound(node.box) > limit) continue;
+    if (core.lowerBound(node.box, limit) > limit) continue;
     if (node.count > 0) {
       for (int i = node.first; i < node.first + node.count; ++i) {
-        if (core.lowerBound(tri_boxes_[static_cast<size_t>(i)]) > limit) continue;
+        if (core.gapBound(tri_boxes_[static_cast<size_t>(i)]) > limit) continue;
         const auto& v = tri_vertices_[static_cast<size_t>(i)];
         if (core.lowerBound(v) > limit) continue;
         const Vec3 a_B = R_BM * (v[0] - X_MB.p), b_B = R_BM * (v[1] - X_MB.p), c_B = R_BM * (v[2] - X_MB.p);
@@ -406,11 +426,11 @@ double MeshBvh::advancementStep(const Shape& shape, const Pose& X_MB, const Vec3
   };
   // Lower bound of the time before box b can come within η: the larger of the directional bound
   // along the first-order separating direction and the box-gap bound at the full speed μ_c.
-  auto boxTime = [&](const Aabb& b) {
-    const Vec3 gap = (b.lo - core.box.hi).cwiseMax(core.box.lo - b.hi).cwiseMax(0.0);
-    const double margin_gap = std::sqrt(gap.squaredNorm()) - r - eta;
+  auto boxTime = [&](const Aabb& b, double cutoff) {
+    const double margin_gap = core.gapBound(b) - r - eta;
     double t_gap = 0.0;
     if (margin_gap > 0.0) t_gap = mu_c > 0.0 ? margin_gap / mu_c : std::numeric_limits<double>::infinity();
+    if (t_gap >= cutoff) return t_gap;
     Vec3 u;
     const double f = core.pointDistance(b.centre(), &u);
     if (f <= 0.0) return t_gap;
@@ -448,14 +468,14 @@ double MeshBvh::advancementStep(const Shape& shape, const Pose& X_MB, const Vec3
   double stack_t[kStackSize];
   int sp = 0;
   stack[sp] = 0;
-  stack_t[sp++] = boxTime(nodes_[0].box);
+  stack_t[sp++] = boxTime(nodes_[0].box, best);
   while (sp > 0) {
     --sp;
     if (stack_t[sp] >= best) continue;
     const Node& node = nodes_[static_cast<size_t>(stack[sp])];
     if (node.count > 0) {
       for (int i = node.first; i < node.first + node.count; ++i) {
-        if (boxTime(tri_boxes_[static_cast<size_t>(i)]) >= best) continue;
+        if (boxTime(tri_boxes_[static_cast<size_t>(i)], best) >= best) continue;
         const auto& v = tri_vertices_[static_cast<size_t>(i)];
         {
           const Vec3 c = (v[0] + v[1] + v[2]) / 3.0;
@@ -469,8 +489,8 @@ double MeshBvh::advancementStep(const Shape& shape, const Pose& X_MB, const Vec3
       }
       continue;
     }
-    const double t_left = boxTime(nodes_[static_cast<size_t>(node.first)].box);
-    const double t_right = boxTime(nodes_[static_cast<size_t>(node.right)].box);
+    const double t_left = boxTime(nodes_[static_cast<size_t>(node.first)].box, best);
+    const double t_right = boxTime(nodes_[static_cast<size_t>(node.right)].box, best);
     const bool left_first = t_left <= t_right;
     const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
     const double far_t = left_first ? t_right : t_left, near_t = left_first ? t_left : t_right;

@@ -43,6 +43,7 @@ inline StepParams pipelineStepParams() {
   StepParams p;
   p.max_step_translation = 0.03;
   p.max_step_rotation = 0.25;
+  p.max_step_rotation_in_contact = 0.05;
   return p;
 }
 
@@ -51,7 +52,7 @@ struct PipelineParams {
   ContactParams contacts;
   double contact_reach = 0.003;       ///< m, beyond the motion asked for
   double max_reach = 0.02;            ///< m
-  geo::SweepParams sweep;
+  geo::SweepParams sweep;             ///< CCD: stop 25 µm from a surface, tolerance 1 µm
   double max_force_per_contact = 20;  ///< N
   double max_force_per_hand = 60;     ///< N (Σ |f| over the hand's contacts)
   int resolve_iterations = 4;         ///< scene push-out passes (paper §6.2)

@@ -52,6 +52,10 @@ struct StepParams {
   /// error grows with its square; the pipeline sets 0.03 m / 0.25 rad.
   double max_step_translation = std::numeric_limits<double>::infinity();
   double max_step_rotation = std::numeric_limits<double>::infinity();
+  /// The same for bodies with a contact closer than contact_rotation_distance (m): the sweep's
+  /// rotation about the body origin bulges ≈ θ² r / 8 off the chord; the pipeline sets 0.05 rad.
+  double max_step_rotation_in_contact = std::numeric_limits<double>::infinity();
+  double contact_rotation_distance = 0.005;
   double projection_tolerance = 1e-10;  ///< m / rad: joints and limits closed to this
   double target_unit_tolerance = 1e-3;  ///< |‖q‖ − 1| above this rejects a target
 

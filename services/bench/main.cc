@@ -48,6 +48,7 @@ const char* kUsage =
     "  --solver exact|pgs    QP solver (default exact); --pgs-iterations N sweeps (default 30)\n"
     "  --frames N            only the first N frames\n"
     "  --no-physics          dynamic objects stay put (no Bullet)\n"
+    "  --physics-hz N        Bullet's internal step rate (default 240; each frame takes ceil(rate/fps) substeps)\n"
     "  --json OUT            write the report as JSON\n"
     "  --poses OUT.csv       write every God object's world pose every frame\n"
     "  --quiet               no progress lines\n"
@@ -62,6 +63,7 @@ struct Args {
   SolverKind solver = SolverKind::Exact;
   int pgs_iterations = 30;
   long frames = -1;
+  int physics_hz = 240;
   bool physics = true, quiet = false, check = false;
 };
 
@@ -105,6 +107,7 @@ Args parseArgs(int argc, char** argv) {
     } else if (f == "--pgs-iterations") a.pgs_iterations = static_cast<int>(parseCount(f, value(), 1, 100000));
     else if (f == "--frames") a.frames = parseCount(f, value(), 1, 1L << 40);
     else if (f == "--no-physics") a.physics = false;
+    else if (f == "--physics-hz") a.physics_hz = static_cast<int>(parseCount(f, value(), 10, 100000));
     else if (f == "--quiet") a.quiet = true;
     else if (f == "--check") a.check = true;
     else fail("unknown argument '" + f + "' (see --help)");
@@ -198,7 +201,10 @@ int main(int argc, char** argv) {
   std::unique_ptr<Pipeline> pipe;
   std::vector<leap::Retargeter> retarget;
   try {
-    pipe = std::make_unique<Pipeline>(scene, models, params);
+    PhysicsParams physics;
+    physics.fixed_dt = 1.0 / args.physics_hz;
+    physics.max_substeps = std::max(20, static_cast<int>(std::ceil(args.physics_hz / rate)) + 1);
+    pipe = std::make_unique<Pipeline>(scene, models, params, physics);
     for (const HandModel* m : models) retarget.emplace_back(*m);
   } catch (const std::exception& e) { fail(e.what()); }
 
@@ -322,6 +328,7 @@ int main(int argc, char** argv) {
     j["reference_triangles"] = scene.reference_triangles;
     j["frame_rate_hz"] = rate;
     j["solver"] = args.solver == SolverKind::Exact ? "exact" : "pgs";
+    j["physics_hz"] = args.physics ? args.physics_hz : 0;
     j["step_us"] = {{"median", median}, {"p99", percentile(step_us, 0.99)}, {"max", percentile(step_us, 1.0)}};
     j["hz_median"] = hz;
     j["stages_us"] = {{"contacts", percentile(st_contacts, 0.5)}, {"assembly", percentile(st_assembly, 0.5)},
