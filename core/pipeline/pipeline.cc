@@ -54,6 +54,8 @@ Pipeline::Pipeline(const Scene& scene, std::vector<const HandModel*> hands, Pipe
     : scene_(scene), params_(std::move(params)), collision_(scene) {
   params_.validate();
   params_.step.rows.dt = params_.step.dt;
+  // Diagnostics on stderr: GODHAND_TRACE=1 per frame and hand, =2 also every clipping sweep.
+  if (const char* t = std::getenv("GODHAND_TRACE")) trace_ = std::atoi(t);
   if (params_.simulate) physics_ = std::make_unique<PhysicsWorld>(scene, physics);
   for (const HandModel* m : hands) {
     if (!m) throw std::invalid_argument("pipeline: null hand model");
@@ -224,7 +226,7 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
     hand.X_old = hand.stepper->poses();
     const std::vector<Pose>& X_old = hand.X_old;
     const StepReport& sr = hand.stepper->step(si);
-    if (std::getenv("GODHAND_TRACE")) {
+    if (trace_ >= 1) {
       std::fprintf(stderr, "trace: frame %llu step status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u\n",
                    static_cast<unsigned long long>(counters_.frames + 1), static_cast<int>(sr.solve.status),
                    sr.solve.kkt_residual, sr.projection_iterations, sr.joint_errors.gap, sr.rows, sr.flags);
@@ -248,7 +250,7 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
     for (size_t b = 0; b < X_new.size(); ++b) {
       const geo::SweepResult r = collision_.sweep(hand.model->bodies[b].shape, X_old[b], X_new[b], params_.sweep);
       if (r.started_inside) rep.started_inside = true;
-      if (std::getenv("GODHAND_TRACE") && r.toc < 1.0 && std::getenv("GODHAND_TRACE")[0] == '2')
+      if (trace_ >= 2 && r.toc < 1.0)
         std::fprintf(stderr, "trace: body %zu toc %.3g hit %d inside %d it %d d %.3g move %.3g\n", b, r.toc, r.hit,
                      r.started_inside, r.iterations, r.distance, (X_new[b].p - X_old[b].p).norm());
       toc = std::min(toc, r.toc);
@@ -271,7 +273,7 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
       ++counters_.clipped_steps;
     }
     rep.joint_errors = hand.stepper->lastReport().joint_errors;
-    if (std::getenv("GODHAND_TRACE"))
+    if (trace_ >= 1)
       std::fprintf(stderr, "trace: frame %llu hand %zu toc %.3g gap %.3g it %d contacts %zu pre-gap %.3g inside %d\n",
                    static_cast<unsigned long long>(counters_.frames), h, toc, rep.joint_errors.gap,
                    hand.stepper->lastReport().projection_iterations, hand.contacts.size(), sr.joint_errors.gap,

@@ -147,6 +147,7 @@ class Pipeline {
   std::vector<Hand> hands_;
   FrameReport report_;
   PipelineCounters counters_;
+  int trace_ = 0;  ///< GODHAND_TRACE level (diagnostics on stderr)
 };
 
 }  // namespace godhand
