@@ -84,8 +84,6 @@ struct CoreM {
     return f;
   }
 
-  /// A lower bound of the distance from the core to any point of box b: the larger of the
-  /// box–box gap and the first-order (convexity) bound at the box centre, f(c) − Σ|u_i| e_i.
   /// Distance between the core's box and b (a lower bound of the core distance to b).
   double gapBound(const Aabb& b) const {
     const Vec3 gap = (b.lo - box.hi).cwiseMax(box.lo - b.hi).cwiseMax(0.0);
@@ -122,8 +120,6 @@ double solidAngle(const Vec3& a, const Vec3& b, const Vec3& c) {
   return 2.0 * std::atan2(num, den);
 }
 
-}  // namespace
-
 /// Per-triangle quantities the build needs, computed once.
 struct BuildData {
   std::vector<Aabb> boxes;
@@ -131,6 +127,8 @@ struct BuildData {
   std::vector<Vec3> area_vectors;  ///< ½ (b − a) × (c − a)
   std::vector<double> areas;
 };
+
+}  // namespace
 
 struct MeshBvh::Impl {
   /// Builds the subtree over order_[begin, end); returns its node index.
@@ -156,7 +154,7 @@ struct MeshBvh::Impl {
     int* first = bvh.order_.data() + begin;
     int* last = bvh.order_.data() + end;
     int mid = -1;
-    if (depth < kMaxSahDepth) mid = sahSplit(first, last, cbox, centroids, boxes) ;
+    if (depth < kMaxSahDepth) mid = sahSplit(first, last, cbox, centroids, boxes);
     if (mid <= 0 || mid >= n) {
       int axis = 0;
       cbox.extent().maxCoeff(&axis);
@@ -290,9 +288,11 @@ MeshBvh::MeshBvh(TriangleMesh mesh) : mesh_(std::move(mesh)) {
   const std::vector<Aabb>& boxes = data.boxes;
   order_.resize(static_cast<size_t>(n));
   std::iota(order_.begin(), order_.end(), 0);
-  nodes_.reserve(static_cast<size_t>(2 * (n / 2 + 1)));
+  nodes_.reserve(2 * static_cast<size_t>(n));  // ≤ 2n − 1 nodes
   dipole_moment_.reserve(nodes_.capacity());
   Impl::build(*this, 0, n, 0, data);
+  nodes_.shrink_to_fit();
+  dipole_moment_.shrink_to_fit();
   tri_boxes_.resize(static_cast<size_t>(n));
   tri_vertices_.resize(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) {

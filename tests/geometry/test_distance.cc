@@ -229,7 +229,7 @@ TEST(Distance, PointTriangleMatchesFclAndSearch) {
       max_err_fcl = std::max(max_err_fcl, std::abs(res.min_distance + 1e-3 - d));
     }
   }
-  std::printf("[figure] point-triangle: max |ours - search| %.3g m, max |ours - FCL sphere-TriangleP| %.3g m\n",
+  std::printf("[figure] point-triangle: max |ours - search| %.3g m, max |ours - FCL sphere vs 1-triangle BVHModel| %.3g m\n",
               max_err_search, max_err_fcl);
   EXPECT_LT(max_err_fcl, 1e-9);
 }

@@ -130,7 +130,7 @@ void checkConvex(const char* name, const TriangleMesh& m, Rng& rng, int points, 
     const Vec3 p(rng.uniform(b.lo.x(), b.hi.x()), rng.uniform(b.lo.y(), b.hi.y()), rng.uniform(b.lo.z(), b.hi.z()));
     const double fast = bvh.windingNumber(p), exact = exactWinding(m, p);
     *max_err = std::max(*max_err, std::abs(fast - exact));
-    EXPECT_NEAR(fast, exact, 0.1) << name;  // first-order dipoles at β = 2: a few %
+    EXPECT_NEAR(fast, exact, 0.1) << name;  // far-field dipoles (2nd order) at β = 2: a few %
     const bool in = insideConvex(m, p);
     EXPECT_NEAR(exact, in ? 1.0 : 0.0, 1e-9) << name;  // closed mesh: the exact sum is an integer
     if (surfaceDistance(m, p) > 1e-3 * bvh.bounds().extent().maxCoeff()) {
