@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "scene/mesh_io.h"
 #include "geometry/bvh.h"
 #include "geometry/sweep.h"
 
@@ -27,28 +28,8 @@ namespace {
 using namespace godhand;
 using namespace godhand::geo;
 
-TriangleMesh loadObj(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error("cannot open " + path);
-  TriangleMesh mesh;
-  std::string line;
-  while (std::getline(in, line)) {
-    std::istringstream ls(line);
-    std::string tag;
-    ls >> tag;
-    if (tag == "v") {
-      Vec3 v;
-      ls >> v.x() >> v.y() >> v.z();
-      mesh.vertices.push_back(v);
-    } else if (tag == "f") {
-      std::vector<int> idx;
-      std::string tok;
-      while (ls >> tok) idx.push_back(std::stoi(tok.substr(0, tok.find('/'))) - 1);
-      for (size_t k = 2; k < idx.size(); ++k) mesh.triangles.push_back({idx[0], idx[k - 1], idx[k]});
-    }
-  }
-  return mesh;
-}
+// The project's OBJ reader (core/scene/mesh_io), so the tests read the bunny as scenes do.
+TriangleMesh loadObj(const std::string& path) { return godhand::loadMeshFile(path); }
 
 const TriangleMesh& bunnyMesh() {
   static const TriangleMesh mesh = loadObj(GODHAND_DEPLOY_DIR "/meshes/stanford-bunny.obj");

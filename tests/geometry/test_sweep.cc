@@ -16,6 +16,7 @@
 #include <sstream>
 #include <string>
 
+#include "scene/mesh_io.h"
 #include "geometry/sweep.h"
 
 namespace godhand::geo {
@@ -44,28 +45,8 @@ struct Rng {
   }
 };
 
-TriangleMesh loadObj(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error("cannot open " + path);
-  TriangleMesh mesh;
-  std::string line;
-  while (std::getline(in, line)) {
-    std::istringstream ls(line);
-    std::string tag;
-    ls >> tag;
-    if (tag == "v") {
-      Vec3 v;
-      ls >> v.x() >> v.y() >> v.z();
-      mesh.vertices.push_back(v);
-    } else if (tag == "f") {
-      std::vector<int> idx;
-      std::string tok;
-      while (ls >> tok) idx.push_back(std::stoi(tok.substr(0, tok.find('/'))) - 1);
-      for (size_t k = 2; k < idx.size(); ++k) mesh.triangles.push_back({idx[0], idx[k - 1], idx[k]});
-    }
-  }
-  return mesh;
-}
+// The project's OBJ reader (core/scene/mesh_io), so the tests read the bunny as scenes do.
+TriangleMesh loadObj(const std::string& path) { return godhand::loadMeshFile(path); }
 
 TriangleMesh icosphere(double radius, int subdivisions) {
   const double t = (1.0 + std::sqrt(5.0)) / 2.0;
