@@ -22,6 +22,10 @@
 // from which the normal steps (with CCD) bring it down to the surface. A hand that loses tracking
 // is frozen where it is and reported untracked; when it is tracked again it moves on from there
 // (the sweep clips that motion like any other: it never teleports through an object).
+//
+// The pipeline is the three stages of stages.h called in order (every HandSolver, the Resolver,
+// the SceneStage), the structs they exchange passed by reference: the distributed services run
+// the same stages and pass the same structs over Fast DDS.
 #pragma once
 
 #include <cstdint>
@@ -32,35 +36,12 @@
 #include "pipeline/collision_world.h"
 #include "scene/scene.h"
 #include "step/cluster_step.h"
+#include "pipeline/stages.h"
 
 namespace godhand {
 
 class PhysicsWorld;
 struct PhysicsParams;
-
-/// The stepper's parameters as the pipeline uses them: the motion clamp on (see StepParams).
-inline StepParams pipelineStepParams() {
-  StepParams p;
-  p.max_step_translation = 0.03;
-  p.max_step_rotation = 0.25;
-  p.max_step_rotation_in_contact = 0.05;
-  return p;
-}
-
-struct PipelineParams {
-  StepParams step = pipelineStepParams();  ///< dt here is the frame period
-  ContactParams contacts;
-  double contact_reach = 0.003;       ///< m, beyond the motion asked for
-  double max_reach = 0.02;            ///< m
-  geo::SweepParams sweep;             ///< CCD: stop 25 µm from a surface, tolerance 1 µm
-  double max_force_per_contact = 20;  ///< N
-  double max_force_per_hand = 60;     ///< N (Σ |f| over the hand's contacts)
-  int resolve_iterations = 4;         ///< scene push-out passes (paper §6.2)
-  bool simulate = true;               ///< false: dynamic objects stay put (pure God-object run)
-  double start_clearance = 2e-4;      ///< m: a start pose closer than this is not free
-
-  void validate() const;              ///< throws std::invalid_argument naming the field
-};
 
 struct PipelineTimes {
   double contacts_us = 0, assembly_us = 0, solve_us = 0, integrate_us = 0, ccd_us = 0, merge_us = 0, scene_us = 0;
@@ -78,6 +59,7 @@ struct HandFrameReport {
   SolveStatus status = SolveStatus::Converged;
   std::uint32_t flags = 0;
   double force_N = 0.0;               ///< Σ |f| sent to the scene
+  bool loaded = false;                ///< some contact carried force this frame
   JointErrors joint_errors;
 };
 
@@ -93,13 +75,6 @@ struct PipelineCounters {
                 inexact_solves = 0, forces_clamped = 0, scene_pushouts = 0, pushout_unresolved = 0;
 };
 
-/// Targets of one hand for one frame. tracked = false freezes the hand.
-struct HandInput {
-  bool tracked = false;
-  const Pose* targets = nullptr;              ///< one per body of the hand's model
-  const unsigned char* has_target = nullptr;  ///< per body, nullptr = all
-};
-
 class Pipeline {
  public:
   /// The scene and models must outlive the pipeline. Throws std::invalid_argument on bad
@@ -112,42 +87,32 @@ class Pipeline {
   /// One frame; inputs.size() must equal the number of hands.
   const FrameReport& step(const std::vector<HandInput>& inputs);
 
-  int handCount() const { return static_cast<int>(hands_.size()); }
-  bool started(int hand) const { return hands_[static_cast<size_t>(hand)].started; }
-  const std::vector<Pose>& poses(int hand) const { return hands_[static_cast<size_t>(hand)].stepper->poses(); }
-  const HandModel& model(int hand) const { return *hands_[static_cast<size_t>(hand)].model; }
-  const ClusterStepper& stepper(int hand) const { return *hands_[static_cast<size_t>(hand)].stepper; }
-  const std::vector<Contact>& contacts(int hand) const { return hands_[static_cast<size_t>(hand)].contacts; }
-  const CollisionWorld& collision() const { return collision_; }
-  const PhysicsWorld* physics() const { return physics_.get(); }
+  int handCount() const { return static_cast<int>(solvers_.size()); }
+  bool started(int hand) const { return resolver_->result(hand).started; }
+  const std::vector<Pose>& poses(int hand) const { return resolver_->result(hand).X; }
+  const HandModel& model(int hand) const { return *models_[static_cast<size_t>(hand)]; }
+  const HandSolver& solver(int hand) const { return *solvers_[static_cast<size_t>(hand)]; }
+  const Resolver& resolver() const { return *resolver_; }
+  const SceneStage& sceneStage() const { return *scene_stage_; }
+  const HandResult& result(int hand) const { return resolver_->result(hand); }
+  const PhysicsWorld* physics() const { return scene_stage_->physics(); }
   const Scene& scene() const { return scene_; }
   const PipelineParams& params() const { return params_; }
   const PipelineCounters& counters() const { return counters_; }
 
   /// Exact penetration (m, ≥ 0) of every God object of a hand against the reference meshes.
-  double penetration(int hand) const;
+  double penetration(int hand) const { return resolver_->penetration(hand); }
 
  private:
-  struct Hand {
-    const HandModel* model = nullptr;
-    std::unique_ptr<ClusterStepper> stepper;
-    bool started = false;
-    std::vector<Contact> contacts;
-    std::vector<Pose> X_start, X_old;  // scratch
-  };
-  bool start(Hand& hand, const HandInput& in, HandFrameReport& rep);
-  void generateContacts(Hand& hand, const HandInput& in);
-  void applyForces(Hand& hand, HandFrameReport& rep);
-  void stepScene();
-
   const Scene& scene_;
   PipelineParams params_;
-  CollisionWorld collision_;
-  std::unique_ptr<PhysicsWorld> physics_;
-  std::vector<Hand> hands_;
+  std::vector<const HandModel*> models_;
+  std::vector<std::unique_ptr<HandSolver>> solvers_;
+  std::unique_ptr<Resolver> resolver_;
+  std::unique_ptr<SceneStage> scene_stage_;
+  std::vector<const HandProposal*> proposals_;
   FrameReport report_;
   PipelineCounters counters_;
-  int trace_ = 0;  ///< GODHAND_TRACE level (diagnostics on stderr)
 };
 
 }  // namespace godhand

@@ -275,6 +275,22 @@ void ClusterStepper::interpolate(double toc) {
   report_.joint_errors = jointErrors(model_, X_W_.data());
 }
 
+void ClusterStepper::setMotion(const std::vector<Pose>& X_prev, const std::vector<Pose>& X_new) {
+  if (X_prev.size() != model_.bodies.size() || X_new.size() != model_.bodies.size())
+    throw std::invalid_argument("setMotion: expected " + std::to_string(model_.bodies.size()) + " poses");
+  X_prev_ = X_prev;
+  X_W_ = X_new;
+  report_.joint_errors = jointErrors(model_, X_W_.data());
+  report_.projection_iterations = 0;
+}
+
+void ClusterStepper::adoptPoses(const std::vector<Pose>& X_W) {
+  if (X_W.size() != model_.bodies.size())
+    throw std::invalid_argument("adoptPoses: expected " + std::to_string(model_.bodies.size()) + " poses, got " +
+                                std::to_string(X_W.size()));
+  X_W_ = X_W;
+}
+
 void ClusterStepper::reproject(const Contact* contacts, int num_contacts) {
   X_ref_ = X_W_;
   StepInput in;

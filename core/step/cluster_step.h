@@ -125,6 +125,14 @@ class ClusterStepper {
   /// is. Updates lastReport().joint_errors and adds to its projection_iterations.
   void reproject(const Contact* contacts, int num_contacts);
 
+  /// The distributed split (core/pipeline/stages.h): the stage that clips a step is not the one
+  /// that took it. setMotion gives this stepper another stepper's last motion (X_prev -> X_new,
+  /// bit for bit), so interpolate() and reproject() here compute exactly what they would there.
+  /// adoptPoses makes the clipped result the start of the next step without touching the warm
+  /// start or the last targets. Both throw std::invalid_argument on a wrong count.
+  void setMotion(const std::vector<Pose>& X_prev, const std::vector<Pose>& X_new);
+  void adoptPoses(const std::vector<Pose>& X_W);
+
   const std::vector<Pose>& poses() const { return X_W_; }
   const HandModel& model() const { return model_; }
   const StepParams& params() const { return params_; }

@@ -263,10 +263,7 @@ int main(int argc, char** argv) {
       if (hr.tracked) {
         kkt_max = std::max(kkt_max, hr.kkt);
         // Free space: no contact of this hand carries force this frame.
-        bool loaded = false;
-        for (int i = 0; i < hr.contacts; ++i)
-          if (pipe->stepper(static_cast<int>(h)).contactLambda(i) > 0.0) loaded = true;
-        if (!loaded) {
+        if (!hr.loaded) {
           const std::vector<Pose>& X = pipe->poses(static_cast<int>(h));
           double e = 0;
           for (size_t b = 0; b < X.size(); ++b)

@@ -1,0 +1,428 @@
+#include "pipeline/stages.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <stdexcept>
+#include <string>
+
+#include "physics/physics_world.h"
+
+namespace godhand {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+double usSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
+}
+void require(bool ok, const char* what) {
+  if (!ok) throw std::invalid_argument(std::string("pipeline parameter: ") + what);
+}
+bool finiteNonNeg(double x) { return std::isfinite(x) && x >= 0.0; }
+
+// Motion a target asks of a body: |Δp| + |θ| ρ (bounds how far any point of it wants to go).
+double askedMotion(const Pose& X, const Pose& target, double rho) {
+  const Vec6 d = poseDifference(target, X);
+  const double m = d.head<3>().norm() + d.tail<3>().norm() * rho;
+  return std::isfinite(m) ? m : 0.0;
+}
+
+// GODHAND_TRACE=1: per frame and hand on stderr; =2: also every clipping sweep.
+int traceLevel() {
+  const char* t = std::getenv("GODHAND_TRACE");
+  return t ? std::atoi(t) : 0;
+}
+
+PipelineParams prepared(PipelineParams p) {
+  p.validate();
+  p.step.rows.dt = p.step.dt;
+  return p;
+}
+
+void applySnapshot(CollisionWorld& world, const SceneSnapshot& s) {
+  for (const ObjectMotion& o : s.objects)
+    if (o.index >= 0 && o.index < world.objectCount() && isValidPose(o.X, 1e-6)) world.setObjectPose(o.index, o.X);
+}
+}  // namespace
+
+void PipelineParams::validate() const {
+  step.validate();
+  require(contacts.per_pair >= 1 && contacts.per_pair <= 64, "contacts.per_pair must be in [1, 64]");
+  require(finiteNonNeg(contacts.spread), "contacts.spread must be >= 0");
+  require(finiteNonNeg(contacts.normal_angle), "contacts.normal_angle must be >= 0");
+  require(finiteNonNeg(contact_reach), "contact_reach must be >= 0");
+  require(std::isfinite(max_reach) && max_reach >= contact_reach, "max_reach must be >= contact_reach");
+  require(sweep.stop_distance > 0 && std::isfinite(sweep.stop_distance), "sweep.stop_distance must be > 0");
+  require(sweep.stop_distance < step.rows.margin, "sweep.stop_distance must be below the contact margin");
+  require(sweep.tolerance > 0 && sweep.tolerance < sweep.stop_distance, "sweep.tolerance must be in (0, stop_distance)");
+  require(sweep.max_iterations >= 1, "sweep.max_iterations must be >= 1");
+  require(max_force_per_contact > 0 && max_force_per_hand > 0, "force bounds must be > 0");
+  require(resolve_iterations >= 0 && resolve_iterations <= 100, "resolve_iterations must be in [0, 100]");
+  require(finiteNonNeg(start_clearance), "start_clearance must be >= 0");
+}
+
+bool receivesForces(const SceneObject& object, const PipelineParams& params) {
+  return params.simulate && object.mass > 0.0 && object.physics.type != PhysicsShapeType::None;
+}
+
+// ---------------------------------------------------------------------------------------------
+// HandSolver
+
+HandSolver::HandSolver(const Scene& scene, const HandModel& model, const PipelineParams& params)
+    : model_(model), params_(prepared(params)), collision_(scene), trace_(traceLevel()) {
+  stepper_ = std::make_unique<ClusterStepper>(model, params_.step);
+  const int per = static_cast<int>(model.bodies.size()) * params_.contacts.per_pair * 4;
+  stepper_->reserve(per);
+  contacts_.reserve(static_cast<size_t>(per));
+  proposal_.loads.reserve(static_cast<size_t>(per));
+  proposal_.X_old.reserve(model.bodies.size());
+  proposal_.X_new.reserve(model.bodies.size());
+}
+
+HandSolver::~HandSolver() = default;
+
+void HandSolver::setScene(const SceneSnapshot& snapshot) {
+  applySnapshot(collision_, snapshot);
+  scene_frame_ = snapshot.frame;
+}
+
+void HandSolver::adopt(const HandResult& result) {
+  if (!started_ || !result.started || result.X.size() != model_.bodies.size()) return;
+  stepper_->adoptPoses(result.X);
+  last_errors_ = result.joint_errors;
+}
+
+bool HandSolver::start(const HandInput& in) {
+  // Start pose: the targets, with undriven or invalid ones taken from the model's rest pose
+  // relative to the palm (body 0) target.
+  const size_t n = model_.bodies.size();
+  if (!isValidPose(in.targets[0])) return false;
+  const Pose X_WM = in.targets[0] * model_.bodies[0].X_MB_rest.inverse();
+  const std::vector<Pose> rest = model_.restPoses(X_WM);
+  X_start_.assign(n, Pose());
+  for (size_t b = 0; b < n; ++b) {
+    const bool driven = !in.has_target || in.has_target[b];
+    X_start_[b] = driven && isValidPose(in.targets[b]) ? in.targets[b] : rest[b];
+  }
+  auto free = [&](const Vec3& lift) {
+    for (size_t b = 0; b < n; ++b) {
+      Pose X = X_start_[b];
+      X.p += lift;
+      if (collision_.clearance(model_.bodies[b].shape, X, params_.start_clearance) < params_.start_clearance)
+        return false;
+    }
+    return true;
+  };
+  Vec3 lift = Vec3::Zero();
+  if (!free(lift)) {
+    bool found = false;
+    for (double h = 0.01; h <= 4.0 && !found; h *= 2.0) {
+      lift = Vec3(0, 0, h);
+      found = free(lift);
+    }
+    if (!found) return false;  // nowhere free within 4 m above: stay unstarted (reported)
+    proposal_.lifted_start = true;
+    ++counters_.lifted_starts;
+  }
+  for (Pose& X : X_start_) X.p += lift;
+  stepper_->reset(X_start_);
+  started_ = true;
+  last_errors_ = jointErrors(model_, X_start_.data());
+  return true;
+}
+
+void HandSolver::generateContacts(const HandInput& in) {
+  contacts_.clear();
+  const std::vector<Pose>& X = stepper_->poses();
+  for (size_t b = 0; b < model_.bodies.size(); ++b) {
+    const Shape& shape = model_.bodies[b].shape;
+    double reach = params_.contact_reach;
+    const bool driven = in.tracked && (!in.has_target || in.has_target[b]);
+    if (driven) reach += askedMotion(X[b], in.targets[b], geo::boundingRadius(shape));
+    reach = std::min(reach, params_.max_reach);
+    collision_.contacts(shape, X[b], static_cast<int>(b), reach, params_.contacts, &contacts_);
+  }
+}
+
+const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
+  HandProposal& p = proposal_;
+  p.frame = frame;
+  p.scene_frame = scene_frame_;
+  p.tracked = in.tracked && in.targets != nullptr;
+  p.lifted_start = false;
+  p.contact_count = 0;
+  p.loads.clear();
+  p.kkt = 0.0;
+  p.status = SolveStatus::Converged;
+  p.flags = 0;
+  p.times = SolverTimes{};
+  ++counters_.steps;
+  if (p.tracked && !started_) start(in);
+  p.started = started_;
+  p.X_old = stepper_->poses();
+  if (!p.tracked || !started_) {  // frozen: no step, no contacts, no forces
+    contacts_.clear();
+    p.X_new = p.X_old;
+    p.joint_errors = started_ ? last_errors_ : JointErrors{};
+    return p;
+  }
+  Clock::time_point t0 = Clock::now();
+  generateContacts(in);
+  p.times.contacts_us = usSince(t0);
+  StepInput si;
+  si.targets = in.targets;
+  si.has_target = in.has_target;
+  si.contacts = contacts_.data();
+  si.num_contacts = static_cast<int>(contacts_.size());
+  const StepReport& sr = stepper_->step(si);
+  if (trace_ >= 1)
+    std::fprintf(stderr, "trace: frame %llu step status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu\n",
+                 static_cast<unsigned long long>(frame), static_cast<int>(sr.solve.status), sr.solve.kkt_residual,
+                 sr.projection_iterations, sr.joint_errors.gap, sr.rows, sr.flags, contacts_.size());
+  p.times.assembly_us = sr.times.coupling_us + sr.times.assembly_us;
+  p.times.solve_us = sr.times.solve_us;
+  p.times.integrate_us = sr.times.integrate_us + sr.times.project_us;
+  p.contact_count = static_cast<int>(contacts_.size());
+  p.kkt = sr.solve.kkt_residual;
+  p.status = sr.solve.status;
+  p.flags = sr.flags;
+  p.joint_errors = sr.joint_errors;
+  last_errors_ = sr.joint_errors;
+  if (sr.flags & kFlagSolverFailed) ++counters_.solver_failures;
+  if (sr.flags & kFlagSolverInexact) ++counters_.inexact_solves;
+  p.X_new = stepper_->poses();
+  for (size_t i = 0; i < contacts_.size(); ++i) {
+    const Contact& c = contacts_[i];
+    const double lambda = stepper_->contactLambda(static_cast<int>(i));
+    if (c.object < 0 || !std::isfinite(lambda) || !(lambda > 0.0)) continue;
+    p.loads.push_back(ContactLoad{c.body, c.object, c.p_W, c.n_W, lambda});
+  }
+  return p;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Resolver
+
+Resolver::Resolver(const Scene& scene, std::vector<const HandModel*> hands, const PipelineParams& params)
+    : params_(prepared(params)), collision_(scene), trace_(traceLevel()) {
+  dynamic_.resize(scene.objects.size());
+  for (size_t o = 0; o < scene.objects.size(); ++o) dynamic_[o] = receivesForces(scene.objects[o], params_);
+  for (const HandModel* m : hands) {
+    if (!m) throw std::invalid_argument("resolver: null hand model");
+    Hand h;
+    h.model = m;
+    h.stepper = std::make_unique<ClusterStepper>(*m, params_.step);
+    h.stepper->reserve(static_cast<int>(m->bodies.size()) * params_.contacts.per_pair * 4);
+    h.contacts.reserve(m->bodies.size() * static_cast<size_t>(params_.contacts.per_pair) * 4);
+    h.result.X = m->restPoses(Pose{});
+    hands_.push_back(std::move(h));
+  }
+}
+
+Resolver::~Resolver() = default;
+
+void Resolver::setScene(const SceneSnapshot& snapshot) { applySnapshot(collision_, snapshot); }
+
+void Resolver::applyForces(int h, const HandProposal& p) {
+  HandResult& r = hands_[static_cast<size_t>(h)].result;
+  r.force_N = 0.0;
+  if (!params_.simulate) return;
+  auto dynamic = [&](int o) { return o >= 0 && static_cast<size_t>(o) < dynamic_.size() && dynamic_[static_cast<size_t>(o)]; };
+  double total = 0.0;
+  for (const ContactLoad& c : p.loads)
+    if (dynamic(c.object) && std::isfinite(c.lambda) && c.lambda > 0.0)
+      total += std::min(c.lambda, params_.max_force_per_contact);
+  if (total <= 0.0) return;
+  const double hand_scale = total > params_.max_force_per_hand ? params_.max_force_per_hand / total : 1.0;
+  if (hand_scale < 1.0) ++counters_.forces_clamped;
+  for (const ContactLoad& c : p.loads) {
+    if (!dynamic(c.object) || !std::isfinite(c.lambda) || !(c.lambda > 0.0)) continue;
+    double lambda = c.lambda;
+    if (lambda > params_.max_force_per_contact) {
+      lambda = params_.max_force_per_contact;
+      ++counters_.forces_clamped;
+    }
+    lambda *= hand_scale;
+    // The God object is pushed along +n; the reaction on the object is −λ n at the contact.
+    forces_.loads.push_back(AppliedLoad{c.object, h, c.body, c.p_W, c.n_W, lambda});
+    r.force_N += lambda;
+  }
+}
+
+void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::uint64_t frame) {
+  if (proposals.size() != hands_.size()) throw std::invalid_argument("resolver: one proposal slot per hand expected");
+  ++counters_.frames;
+  forces_.frame = frame;
+  forces_.loads.clear();
+  forces_.bodies.clear();
+  for (size_t h = 0; h < hands_.size(); ++h) {
+    Hand& hand = hands_[h];
+    HandResult& r = hand.result;
+    const HandProposal* p = proposals[h];
+    const size_t n = hand.model->bodies.size();
+    if (!p || p->X_old.size() != n || p->X_new.size() != n) {  // held at the last result
+      r.present = false;
+      r.frame = frame;
+      r.force_N = 0.0;
+      if (r.started) ++counters_.held;
+      continue;
+    }
+    r.present = true;
+    r.frame = frame;
+    r.scene_frame = p->scene_frame;
+    r.tracked = p->tracked;
+    r.started = p->started;
+    r.lifted_start = p->lifted_start;
+    r.started_inside = false;
+    r.loaded = !p->loads.empty();
+    r.toc = 1.0;
+    r.contacts = p->contact_count;
+    r.kkt = p->kkt;
+    r.status = p->status;
+    r.flags = p->flags;
+    r.joint_errors = p->joint_errors;
+    r.force_N = 0.0;
+    r.solver_times = p->times;
+    r.ccd_us = r.merge_us = 0.0;
+    if (!p->tracked || !p->started) {  // frozen: no motion, no forces
+      r.X = p->X_old;
+      continue;
+    }
+    // ccd: TOC_min of this cluster
+    Clock::time_point t0 = Clock::now();
+    double toc = 1.0;
+    for (size_t b = 0; b < n; ++b) {
+      const geo::SweepResult s = collision_.sweep(hand.model->bodies[b].shape, p->X_old[b], p->X_new[b], params_.sweep);
+      if (s.started_inside) r.started_inside = true;
+      if (trace_ >= 2 && s.toc < 1.0)
+        std::fprintf(stderr, "trace: body %zu toc %.3g hit %d inside %d it %d d %.3g move %.3g\n", b, s.toc, s.hit,
+                     s.started_inside, s.iterations, s.distance, (p->X_new[b].p - p->X_old[b].p).norm());
+      toc = std::min(toc, s.toc);
+    }
+    if (r.started_inside) ++counters_.started_inside;
+    r.toc = toc;
+    r.ccd_us = usSince(t0);
+    // merge: forces to the scene, clip to TOC_min
+    t0 = Clock::now();
+    applyForces(static_cast<int>(h), *p);  // λ of this step's contacts
+    if (toc < 1.0) {
+      // Algorithm 1: move to TOC_min, update the contacts there, re-close the joints against them.
+      hand.stepper->setMotion(p->X_old, p->X_new);
+      hand.stepper->interpolate(toc);
+      hand.contacts.clear();
+      const std::vector<Pose>& X = hand.stepper->poses();
+      for (size_t b = 0; b < n; ++b)
+        collision_.contacts(hand.model->bodies[b].shape, X[b], static_cast<int>(b), params_.contact_reach,
+                            params_.contacts, &hand.contacts);
+      hand.stepper->reproject(hand.contacts.data(), static_cast<int>(hand.contacts.size()));
+      r.X = hand.stepper->poses();
+      r.joint_errors = hand.stepper->lastReport().joint_errors;
+      ++counters_.clipped_steps;
+    } else {
+      r.X = p->X_new;
+    }
+    r.merge_us = usSince(t0);
+    if (trace_ >= 1)
+      std::fprintf(stderr, "trace: frame %llu hand %zu toc %.3g gap %.3g contacts %d inside %d\n",
+                   static_cast<unsigned long long>(frame), h, toc, r.joint_errors.gap, r.contacts, r.started_inside);
+  }
+  for (size_t h = 0; h < hands_.size(); ++h) {
+    const Hand& hand = hands_[h];
+    if (!hand.result.started) continue;
+    for (size_t b = 0; b < hand.result.X.size(); ++b)
+      forces_.bodies.push_back(GodBody{static_cast<int>(h), static_cast<int>(b), hand.model->bodies[b].shape, hand.result.X[b]});
+  }
+}
+
+double Resolver::penetration(int hand) const {
+  const Hand& h = hands_[static_cast<size_t>(hand)];
+  if (!h.result.started) return 0.0;
+  double deepest = 0.0;
+  for (size_t b = 0; b < h.result.X.size(); ++b)
+    deepest = std::max(deepest, collision_.penetration(h.model->bodies[b].shape, h.result.X[b]));
+  return deepest;
+}
+
+// ---------------------------------------------------------------------------------------------
+// SceneStage
+
+SceneStage::SceneStage(const Scene& scene, const PipelineParams& params, const PhysicsParams& physics)
+    : params_(prepared(params)), collision_(scene) {
+  if (params_.simulate) physics_ = std::make_unique<PhysicsWorld>(scene, physics);
+  snapshot_.objects.reserve(scene.objects.size());
+  fill();
+}
+
+SceneStage::~SceneStage() = default;
+
+void SceneStage::fill() {
+  snapshot_.objects.clear();
+  if (!physics_) return;
+  for (int o = 0; o < collision_.objectCount(); ++o)
+    if (physics_->isDynamic(o))
+      snapshot_.objects.push_back(
+          ObjectMotion{o, physics_->pose(o), physics_->linearVelocity(o), physics_->angularVelocity(o)});
+}
+
+const SceneSnapshot& SceneStage::initial() {
+  snapshot_.frame = 0;
+  snapshot_.forces_applied = false;
+  snapshot_.pushouts = 0;
+  snapshot_.step_us = 0.0;
+  fill();
+  return snapshot_;
+}
+
+const SceneSnapshot& SceneStage::step(const ForceSet* forces, std::uint64_t frame) {
+  const Clock::time_point t0 = Clock::now();
+  snapshot_.frame = frame;
+  snapshot_.forces_applied = forces != nullptr;
+  snapshot_.pushouts = 0;
+  ++snapshot_.step;
+  ++counters_.steps;
+  if (physics_) {
+    if (forces)
+      for (const AppliedLoad& l : forces->loads)
+        if (l.object >= 0 && l.object < collision_.objectCount() && physics_->isDynamic(l.object))
+          physics_->applyForce(l.object, -l.lambda * l.n_W, l.p_W);
+    physics_->step(params_.step.dt);
+    for (int o = 0; o < collision_.objectCount(); ++o)
+      if (physics_->isDynamic(o)) collision_.setObjectPose(o, physics_->pose(o));
+    // Paper §6.2: objects that Bullet moved into God objects are moved back out, deepest first,
+    // iterated to a cap (a push can create a new overlap with another God object).
+    const double margin = params_.step.rows.margin;
+    for (int it = 0; forces && it < params_.resolve_iterations; ++it) {
+      double deepest = 0.0;
+      int obj = -1;
+      Vec3 n_deep = Vec3::Zero();
+      for (const GodBody& g : forces->bodies)
+        for (int o = 0; o < collision_.objectCount(); ++o) {
+          if (!physics_->isDynamic(o)) continue;
+          Vec3 n;
+          const double d = collision_.signedDistance(o, g.shape, g.X, margin, &n);
+          if (d < margin && margin - d > deepest) {
+            deepest = margin - d;
+            obj = o;
+            n_deep = n;
+          }
+        }
+      if (obj < 0) break;
+      // Only penetrations (d < 0) need resolving; closing into the margin is left to the contacts.
+      if (deepest <= margin) break;
+      Pose X = collision_.objectPose(obj);
+      X.p -= n_deep * deepest;  // n points from the object towards the God object
+      physics_->setPose(obj, X);
+      collision_.setObjectPose(obj, physics_->pose(obj));
+      ++snapshot_.pushouts;
+      ++counters_.scene_pushouts;
+      if (it + 1 == params_.resolve_iterations) ++counters_.pushout_unresolved;
+    }
+  }
+  fill();
+  snapshot_.step_us = usSince(t0);
+  return snapshot_;
+}
+
+}  // namespace godhand

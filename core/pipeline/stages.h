@@ -1,0 +1,275 @@
+// The method split into the stages the distributed services run (ARCHITECTURE.md "Processes"):
+//
+//   HandSolver (one per hand cluster)   targets + scene + its last resolved state -> HandProposal
+//   Resolver   (one)                    every proposal + scene -> HandResult per hand, ForceSet
+//   SceneStage (one)                    ForceSet -> SceneSnapshot (Bullet steps, push-out)
+//
+// The in-process Pipeline (pipeline.h) is exactly these stages called in this order with the
+// structs passed by reference; the services pass the same structs over Fast DDS (services/
+// convert them to and from the wire types field by field, every double bit for bit). So a
+// lock-step distributed run computes what the in-process run computes, and the tests check it
+// with the result hash.
+//
+// Frame k, lock-step:  solver_c(k) needs targets(k), SceneSnapshot(k-1), HandResult_c(k-1);
+//                      resolver(k) needs every Proposal(k) and SceneSnapshot(k-1);
+//                      scene(k)    needs ForceSet(k).  SceneSnapshot(0) is the initial scene.
+// Live mode runs the same calls on the newest inputs; the resolver holds a hand whose proposal
+// is missing at its last resolved pose (and keeps it in the ForceSet so that the scene keeps
+// dynamic objects out of it).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "model/hand_model.h"
+#include "pipeline/collision_world.h"
+#include "scene/scene.h"
+#include "step/cluster_step.h"
+
+namespace godhand {
+
+class PhysicsWorld;
+struct PhysicsParams;
+
+/// The stepper's parameters as the pipeline uses them: the motion clamp on (see StepParams).
+inline StepParams pipelineStepParams() {
+  StepParams p;
+  p.max_step_translation = 0.03;
+  p.max_step_rotation = 0.25;
+  p.max_step_rotation_in_contact = 0.05;
+  return p;
+}
+
+struct PipelineParams {
+  StepParams step = pipelineStepParams();  ///< dt here is the frame period
+  ContactParams contacts;
+  double contact_reach = 0.003;       ///< m, beyond the motion asked for
+  double max_reach = 0.02;            ///< m
+  geo::SweepParams sweep;             ///< CCD: stop 25 µm from a surface, tolerance 1 µm
+  double max_force_per_contact = 20;  ///< N
+  double max_force_per_hand = 60;     ///< N (Σ |f| over the hand's contacts)
+  int resolve_iterations = 4;         ///< scene push-out passes (paper §6.2)
+  bool simulate = true;               ///< false: dynamic objects stay put (pure God-object run)
+  double start_clearance = 2e-4;      ///< m: a start pose closer than this is not free
+
+  void validate() const;              ///< throws std::invalid_argument naming the field
+};
+
+/// Targets of one hand for one frame. tracked = false freezes the hand.
+struct HandInput {
+  bool tracked = false;
+  const Pose* targets = nullptr;              ///< one per body of the hand's model
+  const unsigned char* has_target = nullptr;  ///< per body, nullptr = all
+};
+
+/// A contact that carries force (finite λ > 0), in the solver's contact order.
+struct ContactLoad {
+  int body = -1;
+  int object = -1;
+  Vec3 p_W = Vec3::Zero();
+  Vec3 n_W = Vec3::UnitZ();  ///< from the object towards the God object
+  double lambda = 0.0;       ///< N on the God object along n
+};
+
+struct SolverTimes {
+  double contacts_us = 0, assembly_us = 0, solve_us = 0, integrate_us = 0;
+};
+
+/// solver -> resolver: the constrained step of one cluster, before continuous collision.
+struct HandProposal {
+  std::uint64_t frame = 0;
+  std::uint64_t scene_frame = 0;  ///< SceneSnapshot frame the step was taken against
+  bool tracked = false;
+  bool started = false;
+  bool lifted_start = false;
+  std::vector<Pose> X_old;        ///< start of the step (a resolved state)
+  std::vector<Pose> X_new;        ///< after the step
+  int contact_count = 0;
+  std::vector<ContactLoad> loads;
+  double kkt = 0.0;
+  SolveStatus status = SolveStatus::Converged;
+  std::uint32_t flags = 0;
+  JointErrors joint_errors;       ///< of X_new
+  SolverTimes times;
+};
+
+/// resolver -> everyone: the final pose of one cluster for one frame.
+struct HandResult {
+  std::uint64_t frame = 0;
+  std::uint64_t scene_frame = 0;
+  bool present = false;           ///< a proposal was resolved this frame (else: held)
+  bool tracked = false;
+  bool started = false;
+  bool lifted_start = false;
+  bool started_inside = false;
+  bool loaded = false;            ///< some contact carries force
+  double toc = 1.0;
+  std::vector<Pose> X;
+  int contacts = 0;
+  double kkt = 0.0;
+  SolveStatus status = SolveStatus::Converged;
+  std::uint32_t flags = 0;
+  JointErrors joint_errors;
+  double force_N = 0.0;
+  SolverTimes solver_times;
+  double ccd_us = 0.0, merge_us = 0.0;
+};
+
+/// A point force on a scene object, in application order.
+struct AppliedLoad {
+  int object = -1;
+  int hand = -1;
+  int body = -1;
+  Vec3 p_W = Vec3::Zero();
+  Vec3 n_W = Vec3::UnitZ();
+  double lambda = 0.0;  ///< after the bounds: the object feels −λ n at p
+};
+
+/// A God object as the scene keeps dynamic objects out of it.
+struct GodBody {
+  int hand = -1;
+  int body = -1;
+  Shape shape;
+  Pose X;
+};
+
+/// resolver -> scene.
+struct ForceSet {
+  std::uint64_t frame = 0;
+  std::vector<AppliedLoad> loads;
+  std::vector<GodBody> bodies;  ///< every started hand, hand order then body order
+};
+
+struct ObjectMotion {
+  int index = -1;
+  Pose X;
+  Vec3 v = Vec3::Zero(), w = Vec3::Zero();
+};
+
+/// scene -> everyone: the dynamic objects after a step (frame 0: the initial scene).
+struct SceneSnapshot {
+  std::uint64_t frame = 0;
+  std::uint64_t step = 0;
+  bool forces_applied = false;
+  int pushouts = 0;
+  double step_us = 0.0;
+  std::vector<ObjectMotion> objects;
+};
+
+struct SolverCounters {
+  std::uint64_t steps = 0, lifted_starts = 0, solver_failures = 0, inexact_solves = 0;
+};
+struct ResolverCounters {
+  std::uint64_t frames = 0, clipped_steps = 0, started_inside = 0, forces_clamped = 0, held = 0;
+};
+struct SceneCounters {
+  std::uint64_t steps = 0, scene_pushouts = 0, pushout_unresolved = 0;
+};
+
+/// One hand cluster's solver: start / lift, contacts, the Gauss step (ClusterStepper).
+class HandSolver {
+ public:
+  /// scene and model must outlive the solver. Throws std::invalid_argument on bad parameters.
+  HandSolver(const Scene& scene, const HandModel& model, const PipelineParams& params);
+  ~HandSolver();
+
+  /// Object poses of a snapshot (the solver's own copy of the collision world).
+  void setScene(const SceneSnapshot& snapshot);
+  /// The resolver's result for this hand becomes the start of the next step.
+  void adopt(const HandResult& result);
+  const HandProposal& step(const HandInput& input, std::uint64_t frame);
+
+  bool started() const { return started_; }
+  const ClusterStepper& stepper() const { return *stepper_; }
+  const std::vector<Contact>& contacts() const { return contacts_; }
+  const SolverCounters& counters() const { return counters_; }
+  const CollisionWorld& collision() const { return collision_; }
+
+ private:
+  bool start(const HandInput& in);
+  void generateContacts(const HandInput& in);
+
+  const HandModel& model_;
+  PipelineParams params_;
+  CollisionWorld collision_;
+  std::unique_ptr<ClusterStepper> stepper_;
+  bool started_ = false;
+  std::uint64_t scene_frame_ = 0;
+  JointErrors last_errors_;
+  std::vector<Contact> contacts_;
+  std::vector<Pose> X_start_;
+  HandProposal proposal_;
+  SolverCounters counters_;
+  int trace_ = 0;
+};
+
+/// The final stage: continuous collision of every hand against the scene, TOC clipping with
+/// re-closed joints, merged and bounded forces.
+class Resolver {
+ public:
+  /// dynamic[o]: forces go to object o (the scene simulates it and it has mass).
+  Resolver(const Scene& scene, std::vector<const HandModel*> hands, const PipelineParams& params);
+  ~Resolver();
+
+  void setScene(const SceneSnapshot& snapshot);
+  /// proposals.size() == hand count; nullptr: no proposal for that hand this frame (held).
+  void resolve(const std::vector<const HandProposal*>& proposals, std::uint64_t frame);
+
+  int handCount() const { return static_cast<int>(hands_.size()); }
+  const HandResult& result(int hand) const { return hands_[static_cast<size_t>(hand)].result; }
+  const ForceSet& forces() const { return forces_; }
+  const ResolverCounters& counters() const { return counters_; }
+  const CollisionWorld& collision() const { return collision_; }
+  /// Exact penetration (m, ≥ 0) of a hand's last result against the reference meshes of the
+  /// scene as the resolver last saw it.
+  double penetration(int hand) const;
+
+ private:
+  struct Hand {
+    const HandModel* model = nullptr;
+    std::unique_ptr<ClusterStepper> stepper;  // clip + reproject only
+    HandResult result;
+    std::vector<Contact> contacts;            // scratch
+  };
+  void applyForces(int h, const HandProposal& p);
+
+  PipelineParams params_;
+  CollisionWorld collision_;
+  std::vector<unsigned char> dynamic_;
+  std::vector<Hand> hands_;
+  ForceSet forces_;
+  ResolverCounters counters_;
+  int trace_ = 0;
+};
+
+/// The Bullet world: applies forces, steps, pushes dynamic objects out of God objects.
+class SceneStage {
+ public:
+  /// params.simulate = false: nothing moves, snapshots list no objects.
+  SceneStage(const Scene& scene, const PipelineParams& params, const PhysicsParams& physics);
+  ~SceneStage();
+
+  /// The initial scene (frame 0).
+  const SceneSnapshot& initial();
+  /// One frame of dt = params.step.dt. forces == nullptr: step without hand forces (live mode).
+  const SceneSnapshot& step(const ForceSet* forces, std::uint64_t frame);
+
+  const PhysicsWorld* physics() const { return physics_.get(); }
+  const SceneCounters& counters() const { return counters_; }
+  const SceneSnapshot& snapshot() const { return snapshot_; }
+
+ private:
+  void fill();
+
+  PipelineParams params_;
+  CollisionWorld collision_;
+  std::unique_ptr<PhysicsWorld> physics_;
+  SceneSnapshot snapshot_;
+  SceneCounters counters_;
+};
+
+/// Whether forces of the God hand go to this object (it has mass and Bullet simulates it).
+bool receivesForces(const SceneObject& object, const PipelineParams& params);
+
+}  // namespace godhand
