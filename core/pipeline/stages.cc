@@ -63,6 +63,15 @@ void PipelineParams::validate() const {
   require(finiteNonNeg(start_clearance), "start_clearance must be >= 0");
 }
 
+PhysicsParams physicsParamsFor(double frame_rate, double physics_hz) {
+  require(std::isfinite(frame_rate) && frame_rate > 0.0, "frame rate must be > 0");
+  require(std::isfinite(physics_hz) && physics_hz >= 10.0 && physics_hz <= 100000.0, "physics rate must be in [10, 100000] Hz");
+  PhysicsParams physics;
+  physics.fixed_dt = 1.0 / physics_hz;
+  physics.max_substeps = std::max(20, static_cast<int>(std::ceil(physics_hz / frame_rate)) + 1);
+  return physics;
+}
+
 bool receivesForces(const SceneObject& object, const PipelineParams& params) {
   return params.simulate && object.mass > 0.0 && object.physics.type != PhysicsShapeType::None;
 }

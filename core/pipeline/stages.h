@@ -269,6 +269,10 @@ class SceneStage {
   SceneCounters counters_;
 };
 
+/// Bullet's parameters for a tracker frame rate: fixed steps of 1/physics_hz, enough substeps
+/// for one frame (what godhand-bench and godhand-scene both use, so that they agree bit for bit).
+PhysicsParams physicsParamsFor(double frame_rate, double physics_hz);
+
 /// Whether forces of the God hand go to this object (it has mass and Bullet simulates it).
 bool receivesForces(const SceneObject& object, const PipelineParams& params);
 

@@ -23,6 +23,7 @@
 #include "leap/retarget.h"
 #include "model/hand_model.h"
 #include "physics/physics_world.h"
+#include "math/stats.h"
 #include "pipeline/pipeline.h"
 #include "scene/scene_file.h"
 
@@ -117,31 +118,6 @@ Args parseArgs(int argc, char** argv) {
   return a;
 }
 
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const double idx = p * static_cast<double>(v.size() - 1);
-  const size_t lo = static_cast<size_t>(std::floor(idx)), hi = static_cast<size_t>(std::ceil(idx));
-  return v[lo] + (v[hi] - v[lo]) * (idx - static_cast<double>(lo));
-}
-
-// FNV-1a over the bit patterns of every pose (result_hash: same input ⇒ same hash).
-struct Hash {
-  std::uint64_t h = 1469598103934665603ull;
-  void add(double x) {
-    std::uint64_t bits;
-    std::memcpy(&bits, &x, sizeof bits);
-    for (int i = 0; i < 8; ++i) {
-      h ^= (bits >> (8 * i)) & 0xffu;
-      h *= 1099511628211ull;
-    }
-  }
-  void add(const Pose& X) {
-    for (int i = 0; i < 3; ++i) add(X.p[i]);
-    add(X.q.w()); add(X.q.x()); add(X.q.y()); add(X.q.z());
-  }
-};
-
 const char* shapeName(ShapeType t) {
   switch (t) {
     case ShapeType::Capsule: return "capsule";
@@ -201,9 +177,7 @@ int main(int argc, char** argv) {
   std::unique_ptr<Pipeline> pipe;
   std::vector<leap::Retargeter> retarget;
   try {
-    PhysicsParams physics;
-    physics.fixed_dt = 1.0 / args.physics_hz;
-    physics.max_substeps = std::max(20, static_cast<int>(std::ceil(args.physics_hz / rate)) + 1);
+    const PhysicsParams physics = physicsParamsFor(rate, args.physics_hz);
     pipe = std::make_unique<Pipeline>(scene, models, params, physics);
     for (const HandModel* m : models) retarget.emplace_back(*m);
   } catch (const std::exception& e) { fail(e.what()); }
@@ -226,7 +200,7 @@ int main(int argc, char** argv) {
   std::vector<double> free_err;
   int contacts_max = 0;
   long clipped_frames = 0, lifted = 0;
-  Hash hash;
+  ResultHash hash;
   const auto t_run = std::chrono::steady_clock::now();
   auto t_progress = t_run;
   for (size_t fi = 0; fi < n_frames; ++fi) {

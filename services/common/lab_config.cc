@@ -1,0 +1,302 @@
+#include "common/lab_config.h"
+
+#include <google/protobuf/io/tokenizer.h>
+#include <google/protobuf/text_format.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <map>
+#include <sstream>
+
+namespace godhand {
+
+namespace {
+
+namespace fs = std::filesystem;
+using google::protobuf::FieldDescriptor;
+using google::protobuf::Message;
+using google::protobuf::TextFormat;
+
+constexpr unsigned kMaxDomainId = 232;
+constexpr double kDefaultDeadlineS = 10.0;
+constexpr double kDefaultStaleAfterS = 0.25;
+
+/// Collects the first syntax error of the text parser with its position.
+class FirstError : public google::protobuf::io::ErrorCollector {
+ public:
+  void AddError(int line, google::protobuf::io::ColumnNumber column, const std::string& message) override {
+    if (!has) {
+      has = true;
+      text = std::to_string(line + 1) + ":" + std::to_string(column + 1) + ": " + message;
+    }
+  }
+  void AddWarning(int, google::protobuf::io::ColumnNumber, const std::string&) override {}
+  bool has = false;
+  std::string text;
+};
+
+/// 1-based line of field `name` (element `index` of a repeated field, -1 for a singular one) of
+/// `msg`, or `fallback` when the field is absent from the text (or unknown).
+int lineOf(const Message& msg, const TextFormat::ParseInfoTree* tree, const std::string& name, int index, int fallback) {
+  const FieldDescriptor* f = msg.GetDescriptor()->FindFieldByName(name);
+  if (!tree || !f) return fallback;
+  if (f->is_repeated()) {  // GetLocation insists on an index in range (the first element for -1)
+    const int size = msg.GetReflection()->FieldSize(msg, f);
+    if (size == 0) return fallback;
+    index = index < 0 ? 0 : index;
+    if (index >= size) return fallback;
+  } else {
+    index = -1;
+  }
+  const auto loc = tree->GetLocation(f, index);
+  return loc.line >= 0 ? loc.line + 1 : fallback;
+}
+
+std::string inQuotes(const std::string& s) { return "\"" + s + "\""; }
+
+std::string num(double x) {
+  std::ostringstream os;
+  os.precision(6);
+  os << x;
+  return os.str();
+}
+
+std::string lower(std::string s) {
+  for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+bool validClusterName(const std::string& s) {
+  if (s.empty() || s.size() > 31) return false;
+  for (char c : s)
+    if (!((c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-')) return false;
+  return true;
+}
+
+/// Builds "SOURCE:LINE: PATH: reason" errors for one message of the file.
+class Where {
+ public:
+  Where(const std::string& source, const Message& msg, const TextFormat::ParseInfoTree* tree, int line, std::string path)
+      : source_(source), msg_(msg), tree_(tree), line_(line), path_(std::move(path)) {}
+
+  /// The error for field `field` of this message ("" = the message itself).
+  [[noreturn]] void fail(const std::string& field, const std::string& reason) const {
+    const int line = field.empty() ? line_ : lineOf(msg_, tree_, field, -1, line_);
+    std::string path = path_;
+    if (!field.empty()) path += (path.empty() ? "" : ".") + field;
+    throw LabError(source_ + ":" + std::to_string(line) + ": " + path + ": " + reason);
+  }
+
+ private:
+  const std::string& source_;
+  const Message& msg_;
+  const TextFormat::ParseInfoTree* tree_;
+  int line_;
+  std::string path_;
+};
+
+/// Absolute, normalised path of `value` (relative to `base_dir`), which must name a readable
+/// regular file; `what` names it in errors ("model", "scene file", ...).
+std::string existingFile(const std::string& value, const fs::path& base_dir, const Where& where, const std::string& field,
+                         const std::string& what) {
+  const fs::path p(value);
+  const std::string full = (p.is_absolute() ? p : base_dir / p).lexically_normal().string();
+  const std::string shown = inQuotes(value) + (value == full ? "" : " (" + full + ")");
+  std::error_code ec;
+  const fs::file_status st = fs::status(full, ec);
+  if (!fs::exists(st)) where.fail(field, what + " " + shown + " does not exist");
+  if (fs::is_directory(st)) where.fail(field, what + " " + shown + " is a directory, not a file");
+  if (::access(full.c_str(), R_OK) != 0) where.fail(field, what + " " + shown + " is not readable: " + std::strerror(errno));
+  return full;
+}
+
+}  // namespace
+
+std::string labServiceName(pb::Service::Kind kind, const std::string& cluster) {
+  switch (kind) {
+    case pb::Service::INGEST: return "ingest";
+    case pb::Service::SCENE: return "scene";
+    case pb::Service::RESOLVER: return "resolver";
+    case pb::Service::SOLVER: return "solver/" + cluster;
+    default: return "";
+  }
+}
+
+bool isLocalHost(const std::string& host) {
+  const std::string h = lower(host);
+  if (h.empty() || h == "localhost" || h == "127.0.0.1" || h == "::1") return true;
+  char buf[256] = {};
+  if (::gethostname(buf, sizeof buf - 1) != 0) return false;
+  return h == lower(buf);
+}
+
+const LabCluster* LabConfig::cluster(const std::string& cluster_name) const {
+  for (const LabCluster& c : clusters)
+    if (c.name == cluster_name) return &c;
+  return nullptr;
+}
+
+const LabService* LabConfig::service(const std::string& service_name) const {
+  for (const LabService& s : services)
+    if (s.name == service_name) return &s;
+  return nullptr;
+}
+
+LabConfig parseLab(const std::string& text, const std::string& source, const std::string& base_dir) {
+  pb::Lab msg;
+  TextFormat::ParseInfoTree tree;
+  FirstError errors;
+  TextFormat::Parser parser;
+  parser.RecordErrorsTo(&errors);
+  parser.WriteLocationsTo(&tree);
+  if (!parser.ParseFromString(text, &msg))
+    throw LabError(source + ":" + (errors.has ? errors.text : std::string("0: unparsable lab file")));
+
+  std::error_code ec;
+  fs::path base = fs::absolute(base_dir.empty() ? fs::path(".") : fs::path(base_dir), ec);
+  if (ec) base = fs::path(base_dir);
+  base = base.lexically_normal();
+
+  const Where top(source, msg, &tree, 1, "");
+  LabConfig lab;
+  lab.file = source;
+  lab.name = msg.name().empty() ? fs::path(source).stem().string() : msg.name();
+
+  if (msg.domain_id() > kMaxDomainId)
+    top.fail("domain_id", "must lie in 0.." + std::to_string(kMaxDomainId) + " (Fast DDS maps it to UDP ports), got " +
+                              std::to_string(msg.domain_id()));
+  lab.domain_id = static_cast<int>(msg.domain_id());
+
+  if (!msg.profiles().empty()) lab.profiles = existingFile(msg.profiles(), base, top, "profiles", "Fast DDS profiles file");
+  if (msg.scene().empty()) top.fail("scene", "a lab needs a scene file (scene: \"...pbtxt\")");
+  lab.scene = existingFile(msg.scene(), base, top, "scene", "scene file");
+  if (!msg.recording().empty()) lab.recording = existingFile(msg.recording(), base, top, "recording", "recording");
+
+  if (msg.deadline_s() != 0.0) {
+    if (!std::isfinite(msg.deadline_s()) || msg.deadline_s() < 0.0)
+      top.fail("deadline_s", "must be a finite number of seconds > 0 (0 or absent = 10), got " + num(msg.deadline_s()));
+    lab.deadline_s = msg.deadline_s();
+  } else {
+    lab.deadline_s = kDefaultDeadlineS;
+  }
+  if (msg.stale_after_s() != 0.0) {
+    if (!std::isfinite(msg.stale_after_s()) || msg.stale_after_s() < 0.0)
+      top.fail("stale_after_s",
+               "must be a finite number of seconds > 0 (0 or absent = 0.25), got " + num(msg.stale_after_s()));
+    lab.stale_after_s = msg.stale_after_s();
+  } else {
+    lab.stale_after_s = kDefaultStaleAfterS;
+  }
+
+  // Clusters.
+  if (msg.clusters_size() == 0) top.fail("clusters", "a lab needs at least one cluster (clusters { name model side })");
+  const FieldDescriptor* f_clusters = msg.GetDescriptor()->FindFieldByName("clusters");
+  std::map<std::string, int> cluster_index;
+  std::vector<int> cluster_line;
+  for (int i = 0; i < msg.clusters_size(); ++i) {
+    const pb::Cluster& pc = msg.clusters(i);
+    const int line = lineOf(msg, &tree, "clusters", i, 1);
+    cluster_line.push_back(line);
+    const Where where(source, pc, tree.GetTreeForNested(f_clusters, i), line, "clusters[" + std::to_string(i) + "]");
+    LabCluster c;
+    c.index = i;
+    c.name = pc.name();
+    if (!validClusterName(c.name))
+      where.fail("name", "a cluster name must be 1 to 31 characters of a-z, 0-9, '_' and '-', got " + inQuotes(c.name));
+    const auto [it, fresh] = cluster_index.emplace(c.name, i);
+    if (!fresh)
+      where.fail("name", "duplicate cluster name " + inQuotes(c.name) + " (also clusters[" + std::to_string(it->second) + "])");
+    c.side = pc.side();
+    if (c.side != "right" && c.side != "left") where.fail("side", "must be \"right\" or \"left\", got " + inQuotes(c.side));
+    if (pc.model().empty()) where.fail("model", "cluster " + inQuotes(c.name) + " needs a hand model file");
+    c.model = existingFile(pc.model(), base, where, "model", "hand model");
+    lab.clusters.push_back(std::move(c));
+  }
+
+  // Services.
+  const FieldDescriptor* f_services = msg.GetDescriptor()->FindFieldByName("services");
+  std::map<std::string, int> service_index;  // name -> index in the file
+  for (int i = 0; i < msg.services_size(); ++i) {
+    const pb::Service& ps = msg.services(i);
+    const int line = lineOf(msg, &tree, "services", i, 1);
+    const Where where(source, ps, tree.GetTreeForNested(f_services, i), line, "services[" + std::to_string(i) + "]");
+    LabService s;
+    s.kind = ps.kind();
+    switch (s.kind) {
+      case pb::Service::INGEST:
+      case pb::Service::SCENE:
+      case pb::Service::RESOLVER:
+        if (!ps.cluster().empty())
+          where.fail("cluster", "cluster applies to SOLVER services only (this one is " +
+                                    pb::Service::Kind_Name(s.kind) + ")");
+        break;
+      case pb::Service::SOLVER:
+        if (ps.cluster().empty()) where.fail("cluster", "a SOLVER service needs the name of its cluster (cluster: \"...\")");
+        if (!cluster_index.count(ps.cluster())) {
+          std::string names;
+          for (const LabCluster& c : lab.clusters) names += (names.empty() ? "" : ", ") + c.name;
+          where.fail("cluster", "no cluster named " + inQuotes(ps.cluster()) + " (clusters: " + names + ")");
+        }
+        s.cluster = ps.cluster();
+        break;
+      case pb::Service::KIND_UNSPECIFIED:
+        where.fail("kind", "every service needs a kind: INGEST, SOLVER, SCENE or RESOLVER");
+      default:
+        where.fail("kind", "unknown service kind " + std::to_string(static_cast<int>(s.kind)));
+    }
+    s.name = labServiceName(s.kind, s.cluster);
+    const auto [it, fresh] = service_index.emplace(s.name, i);
+    if (!fresh) {
+      const std::string first = "services[" + std::to_string(it->second) + "]";
+      if (s.kind == pb::Service::SOLVER)
+        where.fail("cluster", "second SOLVER for cluster " + inQuotes(s.cluster) + " (the first is " + first + ")");
+      where.fail("kind", "second " + pb::Service::Kind_Name(s.kind) + " service (the first is " + first +
+                             "); a lab runs exactly one");
+    }
+    s.host = ps.host();
+    s.local = isLocalHost(s.host);
+    s.args.assign(ps.args().begin(), ps.args().end());
+    lab.services.push_back(std::move(s));
+  }
+  const int services_line = msg.services_size() > 0 ? lineOf(msg, &tree, "services", 0, 1) : 1;
+  for (const pb::Service::Kind kind : {pb::Service::INGEST, pb::Service::SCENE, pb::Service::RESOLVER}) {
+    if (!service_index.count(labServiceName(kind, "")))
+      throw LabError(source + ":" + std::to_string(services_line) + ": services: no " + pb::Service::Kind_Name(kind) +
+                     " service (a lab runs exactly one INGEST, one SCENE, one RESOLVER and one SOLVER per cluster)");
+  }
+  for (const LabCluster& c : lab.clusters) {
+    if (!service_index.count(labServiceName(pb::Service::SOLVER, c.name)))
+      throw LabError(source + ":" + std::to_string(cluster_line[static_cast<size_t>(c.index)]) + ": clusters[" +
+                     std::to_string(c.index) + "]: no SOLVER service for cluster " + inQuotes(c.name) +
+                     " (add services { kind: SOLVER cluster: " + inQuotes(c.name) + " })");
+  }
+  return lab;
+}
+
+LabConfig loadLab(const std::string& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw LabError(path + ":0: cannot read lab file: it is a directory");
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (!f) throw LabError(path + ":0: cannot read lab file: " + std::strerror(errno));
+  std::string text;
+  char buf[65536];
+  size_t n;
+  while ((n = std::fread(buf, 1, sizeof buf, f)) > 0) text.append(buf, n);
+  const bool failed = std::ferror(f) != 0;
+  const int err = errno;
+  std::fclose(f);
+  if (failed) throw LabError(path + ":0: cannot read lab file: " + std::strerror(err));
+
+  fs::path abs = fs::absolute(path, ec);
+  if (ec) abs = fs::path(path);
+  abs = abs.lexically_normal();
+  LabConfig lab = parseLab(text, path, abs.parent_path().string());
+  lab.file = abs.string();
+  return lab;
+}
+
+}  // namespace godhand

@@ -1,0 +1,80 @@
+// Lab configuration (protobuf text, schema idl/lab.proto, e.g. deploy/lab/local.pbtxt): which
+// godhand services run, with which arguments, on which host, and the clusters, scene, models
+// and DDS settings they share. Read by godhand-launch and by every service through --lab, so
+// there is one source of truth. Loading validates everything that can be checked without DDS
+// and resolves every path to an absolute one (relative paths are relative to the directory of
+// the lab file).
+#pragma once
+
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "lab.pb.h"
+
+namespace godhand {
+
+/// Bad or unreadable lab file: one line "FILE:LINE: field: reason", e.g.
+/// "lab.pbtxt:12: clusters[1].side: must be \"right\" or \"left\", got \"up\"".
+/// LINE is that of the offending field when known (else of the enclosing entry, else 0 for
+/// file-level errors); text-format errors are "FILE:LINE:COLUMN: parser message".
+class LabError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// A hand cluster (one God hand or tool, one godhand-solver process). `index` is its position in
+/// the lab file and its key on the wire (HandTarget.hand, HandState.hand, ...).
+struct LabCluster {
+  int index = 0;
+  std::string name;   ///< [a-z0-9_-]{1,31}, unique
+  std::string model;  ///< absolute path of the hand model file (exists)
+  std::string side;   ///< which tracked hand drives it: "right" or "left"
+};
+
+/// A service to run. Exactly one INGEST, SCENE and RESOLVER, and one SOLVER per cluster.
+struct LabService {
+  pb::Service::Kind kind = pb::Service::KIND_UNSPECIFIED;
+  std::string name;     ///< "ingest", "scene", "resolver" or "solver/<cluster>" (unique)
+  std::string cluster;  ///< SOLVER: the cluster's name; "" otherwise
+  std::string host;     ///< as written in the file ("" = this machine)
+  std::vector<std::string> args;  ///< extra command-line arguments, in order
+  bool local = false;   ///< isLocalHost(host): "", "localhost", "127.0.0.1", "::1" or this
+                        ///< machine's gethostname() (compared case-insensitively)
+};
+
+struct LabConfig {
+  std::string file;       ///< absolute path of the lab file (loadLab); parseLab: its source_name
+  std::string name;       ///< the file's `name`, or the file's stem when empty
+  std::string profiles;   ///< absolute path of the Fast DDS XML profiles, or "" = the DDS layer's default
+  std::string scene;      ///< absolute path of the scene file (exists)
+  std::string recording;  ///< absolute path of the default recording (exists), or "" if none
+  int domain_id = 0;      ///< 0..232
+  double deadline_s = 10.0;     ///< lock-step input deadline (file value, or 10 when 0/absent)
+  double stale_after_s = 0.25;  ///< live staleness threshold (file value, or 0.25 when 0/absent)
+  std::vector<LabCluster> clusters;  ///< in file order (index = position), at least one
+  std::vector<LabService> services;  ///< in file order
+
+  /// The cluster with that name, nullptr if none.
+  const LabCluster* cluster(const std::string& name) const;
+  /// The service with that name ("ingest", "solver/left", ...), nullptr if none.
+  const LabService* service(const std::string& name) const;
+};
+
+/// Reads and validates a lab file (throws LabError).
+LabConfig loadLab(const std::string& path);
+
+/// Same, from text in memory: `source_name` names it in errors (and becomes LabConfig::file),
+/// relative paths are resolved against `base_dir` (itself made absolute against the current
+/// directory).
+LabConfig parseLab(const std::string& text, const std::string& source_name, const std::string& base_dir);
+
+/// The service name for a kind: "ingest", "scene", "resolver", "solver/<cluster>"; "" for
+/// KIND_UNSPECIFIED and unknown kinds.
+std::string labServiceName(pb::Service::Kind kind, const std::string& cluster);
+
+/// True if `host` names this machine: "", "localhost", "127.0.0.1", "::1" or gethostname()
+/// (case-insensitive).
+bool isLocalHost(const std::string& host);
+
+}  // namespace godhand

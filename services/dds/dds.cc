@@ -1,0 +1,783 @@
+// The only translation unit that includes Fast DDS headers (see dds.h).
+#include "dds/dds.h"
+
+#include <tinyxml2.h>
+
+#include <algorithm>
+#include <atomic>
+#include <condition_variable>
+#include <cstdlib>
+#include <deque>
+#include <filesystem>
+#include <map>
+#include <mutex>
+#include <set>
+#include <sstream>
+#include <utility>
+
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/domain/qos/DomainParticipantQos.hpp>
+#include <fastdds/dds/log/Log.hpp>
+#include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+#include <fastdds/dds/publisher/qos/DataWriterQos.hpp>
+#include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/DataReaderListener.hpp>
+#include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <fastdds/dds/subscriber/Subscriber.hpp>
+#include <fastdds/dds/subscriber/qos/DataReaderQos.hpp>
+#include <fastdds/dds/topic/Topic.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+#include <fastdds/rtps/transport/TCPv4TransportDescriptor.h>
+#include <fastdds/rtps/transport/TCPv6TransportDescriptor.h>
+#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
+#include <fastdds/rtps/transport/UDPv6TransportDescriptor.h>
+#include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
+#include <fastrtps/attributes/ParticipantAttributes.h>
+#include <fastrtps/attributes/PublisherAttributes.h>
+#include <fastrtps/attributes/SubscriberAttributes.h>
+#include <fastrtps/utils/IPLocator.h>
+#include <fastrtps/xmlparser/XMLParser.h>
+#include <fastrtps/xmlparser/XMLProfileManager.h>
+#include <fastrtps/xmlparser/XMLTree.h>
+
+#include "godhandPubSubTypes.h"  // generated TopicDataTypes (Fast DDS API): this file only
+#include "godhand_bounds.h"      // generated from the IDL by wire_bounds.cmake: within(sample)
+
+#ifndef GODHAND_DEFAULT_PROFILES
+#error "GODHAND_DEFAULT_PROFILES (the shipped profiles file) must be defined by the build"
+#endif
+
+namespace godhand::dds {
+
+namespace fdds = eprosima::fastdds::dds;
+namespace xml = eprosima::fastrtps::xmlparser;
+using eprosima::fastrtps::types::ReturnCode_t;
+
+namespace {
+
+const char* const kPrefix = "godhand::dds: ";
+
+// ---------------------------------------------------------------------------------------------
+// Fast DDS reports XML and entity errors only to its log (asynchronously). A consumer that keeps
+// the recent errors lets a DdsError quote the one that explains a failure. The default console
+// consumer stays registered. The buffer is never destroyed (the log thread may outlive statics).
+struct ErrorLog {
+  std::mutex mutex;
+  std::uint64_t count = 0;                               // errors seen so far
+  std::deque<std::pair<std::uint64_t, std::string>> recent;  // (index, "category: message")
+};
+
+ErrorLog& errorLog() {
+  static ErrorLog* log = new ErrorLog;
+  return *log;
+}
+
+class ErrorCapture : public fdds::LogConsumer {
+ public:
+  void Consume(const fdds::Log::Entry& entry) override {
+    if (entry.kind != fdds::Log::Kind::Error) return;
+    ErrorLog& log = errorLog();
+    std::lock_guard<std::mutex> lock(log.mutex);
+    std::string text = entry.message;
+    std::replace(text.begin(), text.end(), '\n', ' ');
+    if (entry.context.category != nullptr) text = std::string(entry.context.category) + ": " + text;
+    log.recent.emplace_back(log.count++, std::move(text));
+    while (log.recent.size() > 64) log.recent.pop_front();
+  }
+};
+
+std::uint64_t errorMark() {
+  static std::once_flag once;
+  std::call_once(once, [] { fdds::Log::RegisterConsumer(std::unique_ptr<fdds::LogConsumer>(new ErrorCapture)); });
+  fdds::Log::Flush();
+  ErrorLog& log = errorLog();
+  std::lock_guard<std::mutex> lock(log.mutex);
+  return log.count;
+}
+
+// The Fast DDS errors logged since `mark`, most specific first ("Error parsing 'x'" and
+// "Problem loading" are consequences: listed last), as "; Fast DDS: a | b", or "".
+std::string errorsSince(std::uint64_t mark) {
+  fdds::Log::Flush();
+  ErrorLog& log = errorLog();
+  std::lock_guard<std::mutex> lock(log.mutex);
+  std::vector<std::string> first, last;
+  for (const auto& e : log.recent) {
+    if (e.first < mark) continue;
+    const bool consequence = e.second.find("Error parsing") != std::string::npos ||
+                             e.second.find("Problem loading") != std::string::npos ||
+                             e.second.find("Error loading") != std::string::npos;
+    (consequence ? last : first).push_back(e.second);
+  }
+  first.insert(first.end(), last.begin(), last.end());
+  if (first.empty()) return "";
+  std::string out = "; Fast DDS: ";
+  for (std::size_t i = 0; i < first.size() && i < 3; ++i) out += (i ? " | " : "") + first[i];
+  return out;
+}
+
+std::string inQuotes(const std::string& s) { return "'" + s + "'"; }
+
+std::string joined(const std::vector<std::string>& v) {
+  std::string out;
+  for (const auto& s : v) out += (out.empty() ? "" : ", ") + s;
+  return out.empty() ? "none" : out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Profiles files. Fast DDS keeps profile names and transport ids in process-wide registries
+// (the first registration of a name wins, later ones are refused). We keep, per file, what it
+// declares, so that errors name the file and clashes are found before they silently pick
+// another file's profile.
+struct FileProfiles {
+  std::vector<std::string> participants, writers, readers, transports;
+};
+
+struct ProfilesRegistry {
+  std::mutex mutex;
+  std::map<std::string, std::string> loaded;   // path -> "" (ok) or the error message
+  std::map<std::string, std::string> checked;  // path -> "" (ok) or the error message
+  std::map<std::string, FileProfiles> files;   // path -> what it declares (loaded ok)
+  int check_serial = 0;
+};
+
+ProfilesRegistry& registry() {
+  static ProfilesRegistry* r = new ProfilesRegistry;
+  return *r;
+}
+
+bool contains(const std::vector<std::string>& v, const std::string& s) {
+  return std::find(v.begin(), v.end(), s) != v.end();
+}
+
+// Parses the file with tinyxml2 (what Fast DDS uses) for a precise syntax error and the list of
+// profiles; `doc` keeps the parsed document.
+FileProfiles scanProfiles(const std::string& path, tinyxml2::XMLDocument& doc) {
+  std::error_code ec;
+  if (path.empty()) throw DdsError(std::string(kPrefix) + "no DDS profiles file given");
+  if (!std::filesystem::exists(path, ec))
+    throw DdsError(std::string(kPrefix) + "DDS profiles file " + inQuotes(path) + " does not exist");
+  if (!std::filesystem::is_regular_file(path, ec))
+    throw DdsError(std::string(kPrefix) + "DDS profiles file " + inQuotes(path) + " is not a regular file");
+  const tinyxml2::XMLError err = doc.LoadFile(path.c_str());
+  if (err != tinyxml2::XML_SUCCESS) {
+    // ErrorStr(): "Error=XML_ERROR_MISMATCHED_ELEMENT ErrorID=14 (0xe) Line number=5: XMLElement name=rtps".
+    std::string what = tinyxml2::XMLDocument::ErrorIDToName(err);
+    const std::string str = doc.ErrorStr() != nullptr ? doc.ErrorStr() : "";
+    const std::size_t detail = str.find(": ", str.find("Line number="));
+    if (str.find("Line number=") != std::string::npos && detail != std::string::npos) what += str.substr(detail);
+    std::replace(what.begin(), what.end(), '\n', ' ');
+    if (err == tinyxml2::XML_ERROR_FILE_COULD_NOT_BE_OPENED || err == tinyxml2::XML_ERROR_FILE_READ_ERROR)
+      throw DdsError(std::string(kPrefix) + "cannot read DDS profiles file " + inQuotes(path) + ": " + what);
+    throw DdsError(std::string(kPrefix) + "DDS profiles file " + inQuotes(path) + " is not valid XML (line " +
+                   std::to_string(doc.ErrorLineNum()) + "): " + what);
+  }
+  tinyxml2::XMLElement* root = doc.RootElement();
+  tinyxml2::XMLElement* profiles = nullptr;
+  if (root != nullptr && std::string(root->Name()) == "profiles") profiles = root;
+  if (root != nullptr && std::string(root->Name()) == "dds") profiles = root->FirstChildElement("profiles");
+  if (profiles == nullptr)
+    throw DdsError(std::string(kPrefix) + "DDS profiles file " + inQuotes(path) +
+                   " has no <profiles> element (a Fast DDS XML profiles file starts with <profiles> or <dds><profiles>)");
+  FileProfiles out;
+  for (tinyxml2::XMLElement* e = profiles->FirstChildElement(); e != nullptr; e = e->NextSiblingElement()) {
+    const std::string tag = e->Name();
+    const char* name = e->Attribute("profile_name");
+    if (tag == "participant" && name) out.participants.push_back(name);
+    if ((tag == "data_writer" || tag == "publisher") && name) out.writers.push_back(name);
+    if ((tag == "data_reader" || tag == "subscriber") && name) out.readers.push_back(name);
+    if (tag == "transport_descriptors") {
+      for (tinyxml2::XMLElement* t = e->FirstChildElement("transport_descriptor"); t != nullptr;
+           t = t->NextSiblingElement("transport_descriptor")) {
+        tinyxml2::XMLElement* id = t->FirstChildElement("transport_id");
+        if (id != nullptr && id->GetText() != nullptr) out.transports.push_back(id->GetText());
+      }
+    }
+  }
+  return out;
+}
+
+std::string loadProfilesLocked(ProfilesRegistry& reg, const std::string& path) {
+  tinyxml2::XMLDocument doc;
+  FileProfiles declared;
+  try {
+    declared = scanProfiles(path, doc);
+  } catch (const DdsError& e) {
+    return e.what();
+  }
+  const std::string file = "DDS profiles file " + inQuotes(path);
+  // The files Fast DDS loads by itself ($FASTRTPS_DEFAULT_PROFILES_FILE, ./DEFAULT_FASTRTPS_PROFILES.xml)
+  // go first, so that a clash with them is found now.
+  const std::uint64_t mark = errorMark();
+  fdds::DomainParticipantFactory::get_instance()->load_profiles();
+  eprosima::fastrtps::ParticipantAttributes pa;
+  eprosima::fastrtps::PublisherAttributes wa;
+  eprosima::fastrtps::SubscriberAttributes ra;
+  auto clash = [&](const std::string& what) {
+    return std::string(kPrefix) + file + ": " + what +
+           " is already registered in this process from another profiles file (Fast DDS keeps profile names and "
+           "transport ids process-wide: use one godhand profiles file per process; check "
+           "$FASTRTPS_DEFAULT_PROFILES_FILE and ./DEFAULT_FASTRTPS_PROFILES.xml)";
+  };
+  for (const auto& n : declared.participants)
+    if (xml::XMLProfileManager::fillParticipantAttributes(n, pa, false) == xml::XMLP_ret::XML_OK)
+      return clash("participant profile " + inQuotes(n));
+  for (const auto& n : declared.writers)
+    if (xml::XMLProfileManager::fillPublisherAttributes(n, wa, false) == xml::XMLP_ret::XML_OK)
+      return clash("data_writer profile " + inQuotes(n));
+  for (const auto& n : declared.readers)
+    if (xml::XMLProfileManager::fillSubscriberAttributes(n, ra, false) == xml::XMLP_ret::XML_OK)
+      return clash("data_reader profile " + inQuotes(n));
+  for (const auto& n : declared.transports)
+    if (xml::XMLProfileManager::getTransportById(n) != nullptr) return clash("transport id " + inQuotes(n));
+  const xml::XMLP_ret ret = xml::XMLProfileManager::loadXMLFile(path);
+  if (ret != xml::XMLP_ret::XML_OK)
+    return std::string(kPrefix) + file + ": Fast DDS rejected it" +
+           (ret == xml::XMLP_ret::XML_NOK ? " in part (some profiles were not registered)" : "") +
+           errorsSince(mark);
+  reg.files[path] = std::move(declared);
+  return "";
+}
+
+// ---------------------------------------------------------------------------------------------
+// Locators and QoS as strings / QosInfo.
+using eprosima::fastrtps::rtps::IPLocator;
+using eprosima::fastrtps::rtps::Locator_t;
+
+std::string locatorString(const Locator_t& l) {
+  std::string addr;
+  switch (l.kind) {
+    case LOCATOR_KIND_UDPv4:
+    case LOCATOR_KIND_TCPv4:
+      addr = IPLocator::toIPv4string(l);
+      break;
+    case LOCATOR_KIND_UDPv6:
+    case LOCATOR_KIND_TCPv6:
+      addr = "[" + IPLocator::toIPv6string(l) + "]";
+      break;
+    case LOCATOR_KIND_SHM:
+      addr = "shm";
+      break;
+    default:
+      addr = "kind" + std::to_string(l.kind);
+  }
+  return l.port != 0 ? addr + ":" + std::to_string(l.port) : addr;
+}
+
+template <class Qos>
+QosInfo qosInfo(const Qos& q) {
+  QosInfo out;
+  out.reliable = q.reliability().kind == fdds::RELIABLE_RELIABILITY_QOS;
+  out.transient_local = q.durability().kind != fdds::VOLATILE_DURABILITY_QOS;
+  out.keep_all = q.history().kind == fdds::KEEP_ALL_HISTORY_QOS;
+  out.depth = q.history().depth;
+  return out;
+}
+
+// T -> its generated TopicDataType.
+template <class T>
+struct WireType;
+#define GODHAND_WIRE_TYPE(T)             \
+  template <>                            \
+  struct WireType<msg::T> {              \
+    using PubSub = msg::T##PubSubType;   \
+  };
+GODHAND_WIRE_TYPE(HandTarget)
+GODHAND_WIRE_TYPE(HandProposal)
+GODHAND_WIRE_TYPE(HandState)
+GODHAND_WIRE_TYPE(ContactForces)
+GODHAND_WIRE_TYPE(SceneState)
+GODHAND_WIRE_TYPE(SceneDescription)
+GODHAND_WIRE_TYPE(ServiceStatus)
+#undef GODHAND_WIRE_TYPE
+
+}  // namespace
+
+// -------------------------------------------------------------------------------------------------
+// Participant
+
+// A Writer's or Reader's Fast DDS entity, so that ~Participant can delete what is left.
+struct Endpoint {
+  virtual ~Endpoint() = default;
+  virtual void release() = 0;  // deletes the entity (idempotent); called with Core::entities held
+};
+
+struct Participant::Core {
+  std::shared_ptr<fdds::DomainParticipantFactory> factory;  // outlives our participant
+  Options options;
+  std::string profiles_file;
+  fdds::DomainParticipant* participant = nullptr;
+  fdds::Publisher* publisher = nullptr;
+  fdds::Subscriber* subscriber = nullptr;
+
+  std::mutex entities;  // guards what follows, and entity creation / deletion
+  bool closed = false;
+  std::map<std::string, fdds::TypeSupport> types;  // by type name
+  std::map<std::string, fdds::Topic*> topics;      // by topic name
+  std::set<Endpoint*> endpoints;
+
+  // Data-available signal: a counter, so that no notification is lost between take() and wait.
+  std::mutex signal_mutex;
+  std::condition_variable signal;
+  std::uint64_t data_events = 0;
+  std::uint64_t seen_events = 0;
+  bool woken = false;
+
+  void notifyData() {
+    {
+      std::lock_guard<std::mutex> lock(signal_mutex);
+      ++data_events;
+    }
+    signal.notify_all();
+  }
+
+  // The topic `name` of this participant with type PubSub (type registered and topic created
+  // once). Call with `entities` held.
+  template <class PubSub>
+  fdds::Topic* topic(const std::string& name) {
+    if (closed) throw DdsError(std::string(kPrefix) + "participant is being destroyed");
+    fdds::TypeSupport type(new PubSub());
+    const std::string type_name = type.get_type_name();
+    auto t = topics.find(name);
+    if (t != topics.end()) {
+      if (t->second->get_type_name() != type_name)
+        throw DdsError(std::string(kPrefix) + "topic " + inQuotes(name) + " already has type " +
+                       t->second->get_type_name() + " in this participant, not " + type_name);
+      return t->second;
+    }
+    if (types.find(type_name) == types.end()) {
+      const std::uint64_t mark = errorMark();
+      if (type.register_type(participant) != ReturnCode_t::RETCODE_OK)
+        throw DdsError(std::string(kPrefix) + "cannot register type " + type_name + errorsSince(mark));
+      types.emplace(type_name, type);
+    }
+    const std::uint64_t mark = errorMark();
+    fdds::Topic* created = participant->create_topic(name, type_name, fdds::TOPIC_QOS_DEFAULT);
+    if (created == nullptr)
+      throw DdsError(std::string(kPrefix) + "cannot create topic " + inQuotes(name) + " (" + type_name + ")" +
+                     errorsSince(mark));
+    topics.emplace(name, created);
+    return created;
+  }
+
+  // The profile must be a data_writer (writer) / data_reader profile known to Fast DDS.
+  void requireEndpointProfile(bool writer, const std::string& profile) const {
+    bool found = false;
+    if (writer) {
+      eprosima::fastrtps::PublisherAttributes a;
+      found = xml::XMLProfileManager::fillPublisherAttributes(profile, a, false) == xml::XMLP_ret::XML_OK;
+    } else {
+      eprosima::fastrtps::SubscriberAttributes a;
+      found = xml::XMLProfileManager::fillSubscriberAttributes(profile, a, false) == xml::XMLP_ret::XML_OK;
+    }
+    if (found) return;
+    std::vector<std::string> known;
+    {
+      ProfilesRegistry& reg = registry();
+      std::lock_guard<std::mutex> lock(reg.mutex);
+      auto f = reg.files.find(profiles_file);
+      if (f != reg.files.end()) known = writer ? f->second.writers : f->second.readers;
+    }
+    throw DdsError(std::string(kPrefix) + "no " + (writer ? "data_writer" : "data_reader") + " profile " +
+                   inQuotes(profile) + " in DDS profiles file " + inQuotes(profiles_file) + " (it has: " + joined(known) +
+                   ")");
+  }
+};
+
+std::string Participant::resolveProfiles(const std::string& profiles) {
+  if (!profiles.empty()) return profiles;
+  const char* env = std::getenv("FASTRTPS_DEFAULT_PROFILES_FILE");
+  if (env != nullptr && *env != '\0') return env;
+  return GODHAND_DEFAULT_PROFILES;
+}
+
+void Participant::loadProfiles(const std::string& path) {
+  ProfilesRegistry& reg = registry();
+  std::lock_guard<std::mutex> lock(reg.mutex);
+  auto it = reg.loaded.find(path);
+  if (it == reg.loaded.end()) it = reg.loaded.emplace(path, loadProfilesLocked(reg, path)).first;
+  if (!it->second.empty()) throw DdsError(it->second);
+}
+
+void Participant::checkProfiles(const std::string& path) {
+  ProfilesRegistry& reg = registry();
+  std::lock_guard<std::mutex> lock(reg.mutex);
+  auto loaded = reg.loaded.find(path);
+  if (loaded != reg.loaded.end()) {
+    if (!loaded->second.empty()) throw DdsError(loaded->second);
+    return;
+  }
+  auto it = reg.checked.find(path);
+  if (it == reg.checked.end()) {
+    std::string error;
+    try {
+      tinyxml2::XMLDocument doc;
+      scanProfiles(path, doc);
+      // Fast DDS's parser registers transport descriptors by id as it parses (process-wide; a
+      // second registration of an id fails). Parse a copy whose transport ids are made unique,
+      // so that this check leaves the file loadable (and checkable) later.
+      const std::string tag = "godhand_check" + std::to_string(++reg.check_serial) + "_";
+      std::vector<tinyxml2::XMLElement*> stack{doc.RootElement()};
+      while (!stack.empty()) {
+        tinyxml2::XMLElement* e = stack.back();
+        stack.pop_back();
+        if (std::string(e->Name()) == "transport_id" && e->GetText() != nullptr)
+          e->SetText((tag + e->GetText()).c_str());
+        for (tinyxml2::XMLElement* c = e->FirstChildElement(); c != nullptr; c = c->NextSiblingElement())
+          stack.push_back(c);
+      }
+      tinyxml2::XMLPrinter printer;
+      doc.Print(&printer);
+      const std::uint64_t mark = errorMark();
+      xml::up_base_node_t root;
+      const xml::XMLP_ret ret =
+          xml::XMLParser::loadXML(printer.CStr(), static_cast<std::size_t>(printer.CStrSize() - 1), root);
+      if (ret != xml::XMLP_ret::XML_OK || !root)
+        error = std::string(kPrefix) + "DDS profiles file " + inQuotes(path) + ": Fast DDS rejected it" + errorsSince(mark);
+    } catch (const DdsError& e) {
+      error = e.what();
+    }
+    it = reg.checked.emplace(path, error).first;
+  }
+  if (!it->second.empty()) throw DdsError(it->second);
+}
+
+Participant::Participant(const Options& options) : core_(std::make_shared<Core>()) {
+  Core& c = *core_;
+  c.options = options;
+  if (options.domain < 0 || options.domain > 232)
+    throw DdsError(std::string(kPrefix) + "DDS domain " + std::to_string(options.domain) +
+                   " is out of range (0..232)");
+  c.profiles_file = resolveProfiles(options.profiles);
+  loadProfiles(c.profiles_file);
+  {
+    ProfilesRegistry& reg = registry();
+    std::lock_guard<std::mutex> lock(reg.mutex);
+    const FileProfiles& declared = reg.files[c.profiles_file];
+    if (!contains(declared.participants, options.participant_profile))
+      throw DdsError(std::string(kPrefix) + "no participant profile " + inQuotes(options.participant_profile) +
+                     " in DDS profiles file " + inQuotes(c.profiles_file) + " (it has: " + joined(declared.participants) +
+                     ")");
+  }
+  c.factory = fdds::DomainParticipantFactory::get_shared_instance();
+  // create_participant_with_profile() cannot set the participant name; this is what it does
+  // (profile -> QoS over the factory's default), plus the name.
+  fdds::DomainParticipantQos qos;
+  if (c.factory->get_participant_qos_from_profile(options.participant_profile, qos) != ReturnCode_t::RETCODE_OK)
+    throw DdsError(std::string(kPrefix) + "Fast DDS has no participant profile " +
+                   inQuotes(options.participant_profile) + " (from " + inQuotes(c.profiles_file) + ")");
+  if (!options.name.empty()) qos.name(options.name);
+  const std::uint64_t mark = errorMark();
+  c.participant = c.factory->create_participant(options.domain, qos, nullptr, fdds::StatusMask::none());
+  if (c.participant == nullptr)
+    throw DdsError(std::string(kPrefix) + "Fast DDS could not create a participant on domain " +
+                   std::to_string(options.domain) + " from profile " + inQuotes(options.participant_profile) + " of " +
+                   inQuotes(c.profiles_file) + errorsSince(mark));
+  c.publisher = c.participant->create_publisher(fdds::PUBLISHER_QOS_DEFAULT, nullptr, fdds::StatusMask::none());
+  c.subscriber = c.participant->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT, nullptr, fdds::StatusMask::none());
+  if (c.publisher == nullptr || c.subscriber == nullptr) {
+    c.participant->delete_contained_entities();
+    c.factory->delete_participant(c.participant);
+    throw DdsError(std::string(kPrefix) + "Fast DDS could not create a publisher / subscriber" + errorsSince(mark));
+  }
+}
+
+Participant::~Participant() {
+  Core& c = *core_;
+  {
+    std::lock_guard<std::mutex> lock(c.entities);
+    for (Endpoint* e : c.endpoints) e->release();  // Writers / Readers the user did not destroy first
+    c.endpoints.clear();
+    c.closed = true;
+    if (c.participant != nullptr) {
+      c.participant->delete_contained_entities();  // publisher, subscriber, topics
+      c.factory->delete_participant(c.participant);
+      c.participant = nullptr;
+      c.publisher = nullptr;
+      c.subscriber = nullptr;
+      c.topics.clear();
+    }
+  }
+  wake();
+}
+
+int Participant::domain() const { return core_->options.domain; }
+const std::string& Participant::profilesFile() const { return core_->profiles_file; }
+
+ParticipantInfo Participant::info() const {
+  ParticipantInfo out;
+  const fdds::DomainParticipantQos& q = core_->participant->get_qos();
+  out.name = q.name().to_string();
+  out.builtin_transports = q.transport().use_builtin_transports;
+  namespace rtps = eprosima::fastdds::rtps;
+  for (const auto& d : q.transport().user_transports) {
+    if (dynamic_cast<const rtps::SharedMemTransportDescriptor*>(d.get()) != nullptr) {
+      out.transports.push_back("SHM");
+    } else if (const auto* u4 = dynamic_cast<const rtps::UDPv4TransportDescriptor*>(d.get())) {
+      out.transports.push_back("UDPv4");
+      out.udp_whitelist.insert(out.udp_whitelist.end(), u4->interfaceWhiteList.begin(), u4->interfaceWhiteList.end());
+    } else if (dynamic_cast<const rtps::UDPv6TransportDescriptor*>(d.get()) != nullptr) {
+      out.transports.push_back("UDPv6");
+    } else if (dynamic_cast<const rtps::TCPv4TransportDescriptor*>(d.get()) != nullptr) {
+      out.transports.push_back("TCPv4");
+    } else if (dynamic_cast<const rtps::TCPv6TransportDescriptor*>(d.get()) != nullptr) {
+      out.transports.push_back("TCPv6");
+    } else {
+      out.transports.push_back("other");
+    }
+  }
+  const auto& wire = q.wire_protocol();
+  for (const auto& l : wire.builtin.initialPeersList) out.initial_peers.push_back(locatorString(l));
+  for (const auto& l : wire.default_unicast_locator_list) out.unicast_locators.push_back(locatorString(l));
+  for (const auto& l : wire.builtin.metatrafficUnicastLocatorList) out.unicast_locators.push_back(locatorString(l));
+  bool multicast = !wire.default_multicast_locator_list.empty() || !wire.builtin.metatrafficMulticastLocatorList.empty();
+  for (const auto& l : wire.default_unicast_locator_list) multicast = multicast || IPLocator::isMulticast(l);
+  for (const auto& l : wire.builtin.metatrafficUnicastLocatorList) multicast = multicast || IPLocator::isMulticast(l);
+  // With no metatraffic locator at all, Fast DDS adds the multicast discovery locator itself.
+  if (wire.builtin.metatrafficUnicastLocatorList.empty() && wire.builtin.metatrafficMulticastLocatorList.empty())
+    multicast = true;
+  out.multicast_locators = multicast;
+  return out;
+}
+
+bool Participant::waitForData(std::chrono::steady_clock::time_point deadline) {
+  Core& c = *core_;
+  std::unique_lock<std::mutex> lock(c.signal_mutex);
+  c.signal.wait_until(lock, deadline, [&c] { return c.data_events != c.seen_events || c.woken; });
+  const bool data = c.data_events != c.seen_events;
+  c.seen_events = c.data_events;
+  c.woken = false;
+  return data;
+}
+
+void Participant::wake() {
+  Core& c = *core_;
+  {
+    std::lock_guard<std::mutex> lock(c.signal_mutex);
+    c.woken = true;
+  }
+  c.signal.notify_all();
+}
+
+// -------------------------------------------------------------------------------------------------
+// Writer
+
+template <class T>
+struct Writer<T>::Impl : Endpoint {
+  std::shared_ptr<Participant::Core> core;
+  std::string topic;
+  std::mutex mutex;  // guards writer (write vs. release)
+  fdds::DataWriter* writer = nullptr;
+  std::atomic<std::uint64_t> written{0};
+  std::atomic<std::uint64_t> failed{0};
+
+  void release() override {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (writer != nullptr && core->publisher != nullptr) core->publisher->delete_datawriter(writer);
+    writer = nullptr;
+  }
+};
+
+template <class T>
+Writer<T>::Writer(Participant& participant, const std::string& topic, const std::string& profile)
+    : impl_(new Impl) {
+  impl_->core = participant.core_;
+  impl_->topic = topic;
+  Participant::Core& c = *impl_->core;
+  std::lock_guard<std::mutex> lock(c.entities);
+  fdds::Topic* t = c.template topic<typename WireType<T>::PubSub>(topic);
+  c.requireEndpointProfile(true, profile);
+  const std::uint64_t mark = errorMark();
+  impl_->writer = c.publisher->create_datawriter_with_profile(t, profile, nullptr, fdds::StatusMask::none());
+  if (impl_->writer == nullptr)
+    throw DdsError(std::string(kPrefix) + "Fast DDS could not create a writer on " + inQuotes(topic) +
+                   " from data_writer profile " + inQuotes(profile) + " of " + inQuotes(c.profiles_file) + errorsSince(mark));
+  c.endpoints.insert(impl_.get());
+}
+
+template <class T>
+Writer<T>::~Writer() {
+  Participant::Core& c = *impl_->core;
+  std::lock_guard<std::mutex> lock(c.entities);
+  c.endpoints.erase(impl_.get());
+  impl_->release();
+}
+
+template <class T>
+bool Writer<T>::write(const T& sample) {
+  bool ok = false;
+  if (msg::wire_bounds::within(sample)) {  // else: Fast DDS would send it (see wire_bounds.cmake)
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    if (impl_->writer != nullptr) {
+      try {
+        // DataWriter::write takes void*; it does not modify the sample.
+        ok = impl_->writer->write(const_cast<T*>(&sample));
+      } catch (...) {  // fastcdr exceptions escaping a serializer: a failed write, never a crash
+        ok = false;
+      }
+    }
+  }
+  (ok ? impl_->written : impl_->failed).fetch_add(1, std::memory_order_relaxed);
+  return ok;
+}
+
+template <class T>
+int Writer<T>::matched() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  if (impl_->writer == nullptr) return 0;
+  fdds::PublicationMatchedStatus status;
+  if (impl_->writer->get_publication_matched_status(status) != ReturnCode_t::RETCODE_OK) return 0;
+  return status.current_count;
+}
+
+template <class T>
+QosInfo Writer<T>::qos() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->writer != nullptr ? qosInfo(impl_->writer->get_qos()) : QosInfo{};
+}
+
+template <class T>
+std::uint64_t Writer<T>::written() const {
+  return impl_->written.load(std::memory_order_relaxed);
+}
+template <class T>
+std::uint64_t Writer<T>::failed() const {
+  return impl_->failed.load(std::memory_order_relaxed);
+}
+template <class T>
+const std::string& Writer<T>::topic() const {
+  return impl_->topic;
+}
+
+// -------------------------------------------------------------------------------------------------
+// Reader
+
+namespace {
+class DataListener : public fdds::DataReaderListener {
+ public:
+  explicit DataListener(Participant::Core* core) : core_(core) {}
+  void on_data_available(fdds::DataReader*) override { core_->notifyData(); }
+
+ private:
+  Participant::Core* core_;
+};
+}  // namespace
+
+template <class T>
+struct Reader<T>::Impl : Endpoint {
+  std::shared_ptr<Participant::Core> core;
+  std::string topic;
+  std::unique_ptr<DataListener> listener;  // outlives the DataReader (deleted in release first)
+  mutable std::mutex mutex;               // guards reader and scratch
+  fdds::DataReader* reader = nullptr;
+  T scratch;                              // take() target: `out` is untouched when nothing valid
+  std::atomic<std::uint64_t> received{0};
+  std::atomic<std::uint64_t> rejected{0};
+
+  void release() override {
+    std::lock_guard<std::mutex> lock(mutex);
+    // delete_datareader returns once no listener callback runs any more.
+    if (reader != nullptr && core->subscriber != nullptr) core->subscriber->delete_datareader(reader);
+    reader = nullptr;
+  }
+};
+
+template <class T>
+Reader<T>::Reader(Participant& participant, const std::string& topic, const std::string& profile)
+    : impl_(new Impl) {
+  impl_->core = participant.core_;
+  impl_->topic = topic;
+  impl_->listener.reset(new DataListener(impl_->core.get()));
+  Participant::Core& c = *impl_->core;
+  std::lock_guard<std::mutex> lock(c.entities);
+  fdds::Topic* t = c.template topic<typename WireType<T>::PubSub>(topic);
+  c.requireEndpointProfile(false, profile);
+  const std::uint64_t mark = errorMark();
+  impl_->reader =
+      c.subscriber->create_datareader_with_profile(t, profile, impl_->listener.get(), fdds::StatusMask::data_available());
+  if (impl_->reader == nullptr)
+    throw DdsError(std::string(kPrefix) + "Fast DDS could not create a reader on " + inQuotes(topic) +
+                   " from data_reader profile " + inQuotes(profile) + " of " + inQuotes(c.profiles_file) + errorsSince(mark));
+  c.endpoints.insert(impl_.get());
+}
+
+template <class T>
+Reader<T>::~Reader() {
+  Participant::Core& c = *impl_->core;
+  std::lock_guard<std::mutex> lock(c.entities);
+  c.endpoints.erase(impl_.get());
+  impl_->release();
+}
+
+template <class T>
+bool Reader<T>::take(T& out) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  if (impl_->reader == nullptr) return false;
+  fdds::SampleInfo info;
+  for (;;) {
+    ReturnCode_t rc = ReturnCode_t::RETCODE_ERROR;
+    try {
+      rc = impl_->reader->take_next_sample(&impl_->scratch, &info);
+    } catch (...) {  // a serializer exception on a malformed sample: counted, never a crash
+      impl_->rejected.fetch_add(1, std::memory_order_relaxed);
+      return false;
+    }
+    if (rc != ReturnCode_t::RETCODE_OK) return false;
+    if (!info.valid_data) continue;  // dispose / unregister notifications
+    if (!msg::wire_bounds::within(impl_->scratch)) {
+      impl_->rejected.fetch_add(1, std::memory_order_relaxed);
+      continue;
+    }
+    using std::swap;
+    swap(out, impl_->scratch);  // keeps both buffers' capacity
+    impl_->received.fetch_add(1, std::memory_order_relaxed);
+    return true;
+  }
+}
+
+template <class T>
+int Reader<T>::matched() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  if (impl_->reader == nullptr) return 0;
+  fdds::SubscriptionMatchedStatus status;
+  if (impl_->reader->get_subscription_matched_status(status) != ReturnCode_t::RETCODE_OK) return 0;
+  return status.current_count;
+}
+
+template <class T>
+QosInfo Reader<T>::qos() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->reader != nullptr ? qosInfo(impl_->reader->get_qos()) : QosInfo{};
+}
+
+template <class T>
+std::uint64_t Reader<T>::received() const {
+  return impl_->received.load(std::memory_order_relaxed);
+}
+template <class T>
+std::uint64_t Reader<T>::rejected() const {
+  return impl_->rejected.load(std::memory_order_relaxed);
+}
+template <class T>
+const std::string& Reader<T>::topic() const {
+  return impl_->topic;
+}
+
+template class Writer<msg::HandTarget>;
+template class Writer<msg::HandProposal>;
+template class Writer<msg::HandState>;
+template class Writer<msg::ContactForces>;
+template class Writer<msg::SceneState>;
+template class Writer<msg::SceneDescription>;
+template class Writer<msg::ServiceStatus>;
+template class Reader<msg::HandTarget>;
+template class Reader<msg::HandProposal>;
+template class Reader<msg::HandState>;
+template class Reader<msg::ContactForces>;
+template class Reader<msg::SceneState>;
+template class Reader<msg::SceneDescription>;
+template class Reader<msg::ServiceStatus>;
+
+}  // namespace godhand::dds

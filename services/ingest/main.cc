@@ -1,0 +1,182 @@
+// godhand-ingest: reads one tracker source (bridges/source) and publishes one HandTarget per
+// hand cluster of the lab and frame. Live: replays at the recorded rate (times --speed).
+// Lock-step: publishes frame k once every cluster's HandState of frame k-1 is back, so the run
+// goes as fast as the slowest stage allows and is deterministic.
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <thread>
+
+#include "leap/retarget.h"
+#include "model/hand_model.h"
+#include "runtime/convert.h"
+#include "runtime/service.h"
+#include "source/tracker_source.h"
+
+using namespace godhand;
+using svc::SteadyClock;
+
+namespace {
+constexpr const char* kSynopsis =
+    "Reads a tracker source and publishes godhand/hand_target: per frame one HandTarget for each hand\n"
+    "cluster of the lab (the tracked hand of the cluster's side with the highest confidence,\n"
+    "retargeted onto the cluster's hand model; tracked = false when the side is not seen).\n"
+    "Live mode replays at the recorded rate; --lockstep waits for each frame's HandStates.";
+}
+
+int main(int argc, char** argv) {
+  Cli cli("godhand-ingest", kSynopsis);
+  svc::CommonOptions common;
+  common.declare(cli);
+  std::string source_spec;
+  int frames = 0;
+  double speed = 1.0, start_timeout = 30.0;
+  cli.option("--source", &source_spec, "SPEC", "tracker source: leap:FILE or FILE.json (default: the lab's recording)");
+  cli.option("--frames", &frames, "N", "stop after N frames (0: all)");
+  cli.option("--speed", &speed, "X", "live replay speed factor");
+  cli.option("--start-timeout", &start_timeout, "S", "wait at most this long for every service of the lab to report");
+  cli.parse(argc, argv);
+  if (frames < 0) cli.fail("--frames must be >= 0");
+  if (!(speed > 0.0 && speed <= 1000.0)) cli.fail("--speed must be in (0, 1000]");
+  if (!(start_timeout > 0.0)) cli.fail("--start-timeout must be > 0");
+
+  svc::Service service("ingest", common, cli);
+  const LabConfig& lab = service.lab();
+  if (source_spec.empty()) source_spec = lab.recording;
+  if (source_spec.empty()) cli.fail("no tracker source: give --source or a recording in the lab");
+  std::unique_ptr<bridges::TrackerSource> source;
+  std::vector<HandModel> models(lab.clusters.size());
+  std::vector<std::unique_ptr<leap::Retargeter>> retarget;
+  try {
+    source = bridges::openSource(source_spec, frames);
+    for (size_t c = 0; c < lab.clusters.size(); ++c) {
+      models[c] = HandModel::loadFile(lab.clusters[c].model);
+      retarget.push_back(std::make_unique<leap::Retargeter>(models[c]));
+      const auto right = retarget.back()->modelIsRight();
+      if (right && *right != (lab.clusters[c].side == "right"))
+        cli.fail("cluster '" + lab.clusters[c].name + "': model " + lab.clusters[c].model + " is a " +
+                 (*right ? "right" : "left") + " hand but the cluster's side is " + lab.clusters[c].side);
+    }
+  } catch (const std::exception& e) {
+    cli.fail(e.what());
+  }
+  std::fprintf(stderr, "ingest: %s -> %zu cluster(s), %s mode, domain %d\n", source->describe().c_str(),
+               lab.clusters.size(), service.lockstep() ? "lock-step" : "live", service.dds().domain());
+
+  dds::Writer<msg::HandTarget> writer(service.dds(), dds::topic::kHandTarget, service.streamProfile());
+  dds::Reader<msg::HandState> states(service.dds(), dds::topic::kHandState, service.stateProfile());
+  dds::Reader<msg::ServiceStatus> statuses(service.dds(), dds::topic::kServiceStatus, dds::profile::kStatus);
+
+  // Start barrier: every service of the lab has reported (so no frame is published into the void).
+  std::vector<std::string> expected;
+  for (const LabService& s : lab.services)
+    if (s.kind != pb::Service::INGEST) expected.push_back(s.name);
+  {
+    std::map<std::string, bool> seen;
+    const auto until = SteadyClock::now() + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(start_timeout));
+    msg::ServiceStatus st;
+    for (;;) {
+      while (statuses.take(st))
+        if (st.state() == "running") seen[st.service().to_string()] = true;
+      size_t ready = 0;
+      for (const std::string& e : expected) ready += seen.count(e);
+      if (ready == expected.size() && writer.matched() >= static_cast<int>(lab.clusters.size())) break;
+      if (SteadyClock::now() >= until) {
+        std::string missing;
+        for (const std::string& e : expected)
+          if (!seen.count(e)) missing += (missing.empty() ? "" : ", ") + e;
+        return service.finish(3, "services not running after " + std::to_string(start_timeout) + " s: " +
+                                     (missing.empty() ? "solvers not matched" : missing));
+      }
+      if (!service.wait(std::min(until, SteadyClock::now() + std::chrono::milliseconds(50)), "waiting")) return service.finish(0);
+    }
+  }
+
+  const size_t C = lab.clusters.size();
+  std::vector<std::uint64_t> resolved(C, 0);  // newest HandState frame per cluster
+  std::vector<Pose> targets;
+  std::vector<unsigned char> driven;
+  msg::HandTarget out;
+  msg::HandState hs;
+  bridges::TrackerFrame f;
+  std::int64_t t0_us = 0;
+  SteadyClock::time_point t0;
+  std::uint64_t k = 0;
+  const double deadline = service.deadlineSeconds();
+  auto drainStates = [&] {
+    while (states.take(hs)) {
+      if (hs.hand() < C) resolved[hs.hand()] = std::max(resolved[hs.hand()], hs.stamp().frame());
+    }
+  };
+  auto waitResolved = [&](std::uint64_t frame) -> int {  // 0 ok, 1 stop, 2 deadline
+    const auto until = SteadyClock::now() + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(deadline));
+    for (;;) {
+      drainStates();
+      bool all = true;
+      for (size_t c = 0; c < C; ++c) all = all && resolved[c] >= frame;
+      if (all) return 0;
+      if (SteadyClock::now() >= until) return 2;
+      if (!service.wait(until)) return 1;
+    }
+  };
+  while (source->next(&f)) {
+    ++k;
+    if (service.lockstep() && k > 1) {
+      const int w = waitResolved(k - 1);
+      if (w == 1) return service.finish(0);
+      if (w == 2) {
+        ++service.deadline_misses;
+        return service.finish(3, "lock-step: no HandState of frame " + std::to_string(k - 1) + " from every cluster within " +
+                                     std::to_string(deadline) + " s");
+      }
+    }
+    if (!service.lockstep()) {  // pace at the recorded rate
+      if (k == 1) {
+        t0_us = f.timestamp_us;
+        t0 = SteadyClock::now();
+      }
+      const auto due = t0 + std::chrono::duration_cast<SteadyClock::duration>(
+                                std::chrono::duration<double>(static_cast<double>(f.timestamp_us - t0_us) * 1e-6 / speed));
+      while (SteadyClock::now() < due)
+        if (!service.wait(due)) return service.finish(0);
+      drainStates();
+    }
+    if (service.stopping()) return service.finish(0);
+    const std::int64_t t_source = svc::nowNs();
+    for (size_t c = 0; c < C; ++c) {
+      const bridges::TrackedHand* th = bridges::handOfSide(f, lab.clusters[c].side == "right");
+      out.hand(static_cast<std::uint32_t>(c));
+      out.cluster(lab.clusters[c].name);
+      out.stamp().frame(k);
+      out.stamp().source_time_ns(t_source);
+      out.tracked(th != nullptr);
+      out.confidence(th ? static_cast<float>(th->confidence) : 0.0f);
+      out.targets().clear();
+      out.driven().clear();
+      if (th) {
+        retarget[c]->targets(*th, &targets, &driven);
+        out.targets().resize(targets.size());
+        for (size_t b = 0; b < targets.size(); ++b) svc::toWire(targets[b], &out.targets()[b]);
+        for (unsigned char d : driven) out.driven().push_back(d != 0);
+      }
+      out.stamp().publish_time_ns(svc::nowNs());
+      if (writer.write(out)) ++service.samples_out;
+      else service.reject("write failed (hand " + std::to_string(c) + ")");
+    }
+    ++service.samples_in;
+    service.processed(k, t_source);
+    service.heartbeat();
+  }
+  // The end: lock-step waits for the last frame to come back.
+  if (service.lockstep() && k > 0) {
+    const int w = waitResolved(k);
+    if (w == 2) {
+      ++service.deadline_misses;
+      return service.finish(3, "lock-step: no HandState of the last frame " + std::to_string(k) + " within the deadline");
+    }
+  }
+  const bridges::SourceStats ss = source->stats();
+  std::fprintf(stderr, "ingest: source done: %llu frames; %s\n", static_cast<unsigned long long>(ss.frames), ss.detail.c_str());
+  service.heartbeat("finished", true);
+  return service.finish(0);
+}

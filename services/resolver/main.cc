@@ -1,0 +1,193 @@
+// godhand-resolver: the final stage. Merges every cluster's HandProposal against the scene
+// (core Resolver: continuous collision, TOC clipping with re-closed joints, bounded forces) and
+// publishes one HandState per cluster and the frame's ContactForces.
+//
+// Lock-step: frame k needs every cluster's HandProposal(k) and SceneState(k-1) (deadline once the
+// first of them is in). Live: resolves the newest frame as soon as every cluster's proposal of it
+// is in, or after --merge-wait of the frame period with what is there (a missing cluster is held
+// at its last pose and marked stale); the newest scene is used, and when it is older than the
+// lab's stale_after_s every HandState is marked stale (the hands are held against the last scene).
+#include <cstdio>
+#include <map>
+
+#include "model/hand_model.h"
+#include "runtime/convert.h"
+#include "runtime/service.h"
+#include "scene/scene_file.h"
+
+using namespace godhand;
+using svc::SteadyClock;
+
+namespace {
+constexpr const char* kSynopsis =
+    "The final stage: every godhand/hand_proposal + godhand/scene_state -> godhand/hand_state per cluster\n"
+    "and godhand/contact_forces (continuous collision, TOC clipping, merged bounded forces).";
+
+SteadyClock::time_point after(double s) {
+  return SteadyClock::now() + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(s));
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  Cli cli("godhand-resolver", kSynopsis);
+  svc::CommonOptions common;
+  common.declare(cli);
+  bool no_physics = false;
+  double merge_wait = 0.5;
+  cli.flag("--no-physics", &no_physics, "no forces to the scene (pure God-object run)");
+  cli.option("--merge-wait", &merge_wait, "F", "live: wait at most F frame periods for the other clusters' proposals");
+  cli.parse(argc, argv);
+  if (!(merge_wait >= 0.0 && merge_wait <= 100.0)) cli.fail("--merge-wait must be in [0, 100]");
+
+  svc::Service service("resolver", common, cli);
+  const LabConfig& lab = service.lab();
+  const size_t C = lab.clusters.size();
+  std::vector<HandModel> models(C);
+  std::vector<const HandModel*> model_ptrs;
+  Scene scene;
+  PipelineParams params;
+  std::unique_ptr<Resolver> resolver;
+  try {
+    for (size_t c = 0; c < C; ++c) models[c] = HandModel::loadFile(lab.clusters[c].model);
+    for (const HandModel& m : models) model_ptrs.push_back(&m);
+    scene = loadScene(service.sceneFile());
+    params.step.dt = 1.0 / service.frameRate();
+    params.simulate = !no_physics;
+    resolver = std::make_unique<Resolver>(scene, model_ptrs, params);
+  } catch (const std::exception& e) {
+    cli.fail(e.what());
+  }
+  const int objects = static_cast<int>(scene.objects.size());
+
+  dds::Reader<msg::HandProposal> proposals_in(service.dds(), dds::topic::kHandProposal, service.streamProfile());
+  dds::Reader<msg::SceneState> scene_in(service.dds(), dds::topic::kSceneState, service.stateProfile());
+  dds::Writer<msg::HandState> states_out(service.dds(), dds::topic::kHandState, service.stateProfile());
+  dds::Writer<msg::ContactForces> forces_out(service.dds(), dds::topic::kContactForces, service.streamProfile());
+  std::fprintf(stderr, "resolver: %zu cluster(s), scene '%s' (%lld triangles), %.3f Hz, %s mode\n", C, scene.name.c_str(),
+               scene.god_triangles, service.frameRate(), service.lockstep() ? "lock-step" : "live");
+
+  // frame -> per cluster proposal (with its source stamp)
+  struct Slot {
+    std::vector<HandProposal> p;
+    std::vector<msg::Stamp> stamp;
+    std::vector<unsigned char> have;
+    SteadyClock::time_point first_in;
+  };
+  std::map<std::uint64_t, Slot> frames;
+  std::map<std::uint64_t, SceneSnapshot> scenes;
+  SteadyClock::time_point scene_seen = SteadyClock::now();
+  bool have_scene = false;
+  std::uint64_t done = 0;  // newest frame resolved
+  msg::HandProposal mp;
+  msg::SceneState ss;
+  std::string why;
+  HandProposal tmp;
+  auto drain = [&] {
+    while (proposals_in.take(mp)) {
+      ++service.samples_in;
+      const std::uint32_t h = mp.hand();
+      if (h >= C) { service.reject("hand_proposal: hand index " + std::to_string(h) + " not in the lab"); continue; }
+      if (!svc::fromWire(mp, models[h].bodies.size(), objects, &tmp, &why)) { service.reject("hand_proposal: " + why); continue; }
+      if (tmp.frame <= done) { ++service.late; continue; }
+      Slot& s = frames[tmp.frame];
+      if (s.p.empty()) {
+        s.p.resize(C);
+        s.stamp.resize(C);
+        s.have.assign(C, 0);
+        s.first_in = SteadyClock::now();
+      }
+      s.p[h] = tmp;
+      s.stamp[h] = mp.stamp();
+      s.have[h] = 1;
+    }
+    while (scene_in.take(ss)) {
+      SceneSnapshot s;
+      if (!svc::fromWire(ss, objects, &s, &why)) { service.reject("scene_state: " + why); continue; }
+      scene_seen = SteadyClock::now();
+      if (service.lockstep()) scenes[s.frame] = std::move(s);
+      else {
+        resolver->setScene(s);
+        have_scene = true;
+      }
+    }
+  };
+  auto complete = [&](const Slot& s) {
+    for (unsigned char h : s.have)
+      if (!h) return false;
+    return true;
+  };
+
+  std::vector<const HandProposal*> ptrs(C);
+  msg::HandState out;
+  msg::ContactForces forces;
+  const double deadline = service.deadlineSeconds();
+  const double period = 1.0 / service.frameRate();
+  while (!service.stopping()) {
+    drain();
+    std::uint64_t k = 0;
+    if (service.lockstep()) {
+      k = done + 1;
+      if (!frames.count(k)) {
+        if (!service.wait(after(0.1))) break;
+        continue;
+      }
+      const auto until = after(deadline);
+      for (;;) {
+        drain();
+        if (complete(frames[k]) && scenes.count(k - 1)) break;
+        if (SteadyClock::now() >= until) {
+          ++service.deadline_misses;
+          return service.finish(3, "lock-step frame " + std::to_string(k) + ": " +
+                                       (scenes.count(k - 1) ? "a cluster's HandProposal" : "SceneState of frame " + std::to_string(k - 1)) +
+                                       " missing after " + std::to_string(deadline) + " s");
+        }
+        if (!service.wait(until)) return service.finish(0);
+      }
+      resolver->setScene(scenes[k - 1]);
+      scenes.erase(scenes.begin(), scenes.lower_bound(k));
+    } else {
+      if (frames.empty() || !have_scene) {
+        if (!service.wait(after(0.05), have_scene ? "running" : "waiting")) break;
+        continue;
+      }
+      k = frames.rbegin()->first;
+      Slot& s = frames[k];
+      const auto until = s.first_in + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(merge_wait * period));
+      if (!complete(s) && SteadyClock::now() < until) {
+        if (!service.wait(until)) break;
+        continue;
+      }
+      for (auto it = frames.begin(); it != frames.end() && it->first < k;) {  // older partial frames: superseded
+        ++service.late;
+        it = frames.erase(it);
+      }
+    }
+    Slot& s = frames[k];
+    for (size_t h = 0; h < C; ++h) ptrs[h] = s.have[h] ? &s.p[h] : nullptr;
+    resolver->resolve(ptrs, k);
+    const bool scene_stale =
+        !service.lockstep() && std::chrono::duration<double>(SteadyClock::now() - scene_seen).count() > service.staleAfterSeconds();
+    // The stamp of the frame: the newest source stamp among its proposals.
+    msg::Stamp stamp;
+    for (size_t h = 0; h < C; ++h)
+      if (s.have[h] && s.stamp[h].source_time_ns() >= stamp.source_time_ns()) stamp = s.stamp[h];
+    for (size_t h = 0; h < C; ++h) {
+      const HandResult& r = resolver->result(static_cast<int>(h));
+      svc::toWire(r, models[h], scene_stale || !s.have[h], &out);
+      out.hand(static_cast<std::uint32_t>(h));
+      out.cluster(lab.clusters[h].name);
+      out.stamp() = svc::derivedStamp(s.have[h] ? s.stamp[h] : stamp);
+      out.stamp().frame(k);
+      if (states_out.write(out)) ++service.samples_out;
+      else service.reject("hand_state: write failed");
+    }
+    svc::toWire(resolver->forces(), resolver->collision(), &forces);
+    forces.stamp() = svc::derivedStamp(stamp);
+    forces.stamp().frame(k);
+    if (!forces_out.write(forces)) service.reject("contact_forces: write failed");
+    service.processed(k, stamp.source_time_ns());
+    done = k;
+    frames.erase(frames.begin(), frames.upper_bound(k));
+  }
+  return service.finish(0);
+}

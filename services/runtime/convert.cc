@@ -1,0 +1,334 @@
+#include "runtime/convert.h"
+
+#include <chrono>
+#include <cmath>
+
+namespace godhand::svc {
+
+namespace {
+constexpr std::size_t kMaxLoads = 256;      // HandProposal.loads bound
+constexpr std::size_t kMaxApplied = 320;    // ContactForces.contacts bound
+constexpr std::size_t kMaxGodBodies = 96;   // ContactForces.god_bodies bound
+constexpr std::size_t kMaxWrenches = 64;    // ContactForces.objects bound
+constexpr std::size_t kMaxObjects = 100;    // SceneState.objects bound
+
+Vec3 vec(const std::array<double, 3>& a) { return Vec3(a[0], a[1], a[2]); }
+void put(const Vec3& v, std::array<double, 3>* a) { *a = {v.x(), v.y(), v.z()}; }
+bool finite(const Vec3& v) { return std::isfinite(v.x()) && std::isfinite(v.y()) && std::isfinite(v.z()); }
+bool fail(std::string* why, const std::string& reason) {
+  if (why) *why = reason;
+  return false;
+}
+bool poses(const std::vector<msg::Pose>& in, std::size_t n, const char* field, std::vector<Pose>* out, std::string* why) {
+  if (in.size() != n)
+    return fail(why, std::string(field) + ": " + std::to_string(in.size()) + " poses, the model has " + std::to_string(n));
+  out->resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    (*out)[i] = fromWire(in[i]);
+    if (!isValidPose((*out)[i], 1e-6)) return fail(why, std::string(field) + "[" + std::to_string(i) + "]: not finite or not unit");
+  }
+  return true;
+}
+SolveStatus status(std::int32_t s) {
+  return s >= 0 && s <= static_cast<std::int32_t>(SolveStatus::NumericalFailure) ? static_cast<SolveStatus>(s)
+                                                                                 : SolveStatus::NumericalFailure;
+}
+}  // namespace
+
+std::int64_t nowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+void toWire(const Pose& X, msg::Pose* out) {
+  out->p() = {X.p.x(), X.p.y(), X.p.z()};
+  out->q() = {X.q.w(), X.q.x(), X.q.y(), X.q.z()};
+}
+
+Pose fromWire(const msg::Pose& X) {
+  Pose P;
+  P.p = Vec3(X.p()[0], X.p()[1], X.p()[2]);
+  P.q = Quat(X.q()[0], X.q()[1], X.q()[2], X.q()[3]);  // Eigen's constructor takes (w, x, y, z)
+  return P;
+}
+
+void toWire(const Shape& s, msg::BodyShape* out) {
+  out->type(static_cast<std::uint8_t>(s.type));
+  out->radius(s.radius);
+  out->half_length(s.half_length);
+  put(s.half_extents, &out->half_extents());
+}
+
+msg::Stamp derivedStamp(const msg::Stamp& source) {
+  msg::Stamp s = source;
+  s.publish_time_ns(nowNs());
+  return s;
+}
+
+bool fromWire(const msg::HandTarget& in, std::size_t bodies, std::vector<Pose>* targets,
+              std::vector<unsigned char>* driven, std::string* why) {
+  if (!in.tracked()) return true;
+  if (!poses(in.targets(), bodies, "targets", targets, why)) return false;
+  if (in.driven().size() != bodies)
+    return fail(why, "driven: " + std::to_string(in.driven().size()) + " flags, the model has " + std::to_string(bodies));
+  driven->resize(bodies);
+  for (std::size_t i = 0; i < bodies; ++i) (*driven)[i] = in.driven()[i] ? 1 : 0;
+  if (!(*driven)[0]) return fail(why, "driven[0]: the palm (body 0) must be driven");
+  return true;
+}
+
+void toWire(const HandProposal& p, msg::HandProposal* out) {
+  out->scene_frame(p.scene_frame);
+  out->tracked(p.tracked);
+  out->started(p.started);
+  out->lifted_start(p.lifted_start);
+  out->x_old().resize(p.X_old.size());
+  for (std::size_t i = 0; i < p.X_old.size(); ++i) toWire(p.X_old[i], &out->x_old()[i]);
+  out->x_new().resize(p.X_new.size());
+  for (std::size_t i = 0; i < p.X_new.size(); ++i) toWire(p.X_new[i], &out->x_new()[i]);
+  out->contact_count(static_cast<std::uint32_t>(p.contact_count));
+  const std::size_t n = std::min(p.loads.size(), kMaxLoads);
+  out->loads_truncated(p.loads.size() > kMaxLoads);
+  out->loads().resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    msg::ContactLoad& c = out->loads()[i];
+    c.body(p.loads[i].body);
+    c.object(p.loads[i].object);
+    put(p.loads[i].p_W, &c.p());
+    put(p.loads[i].n_W, &c.n());
+    c.lambda(p.loads[i].lambda);
+  }
+  out->kkt(p.kkt);
+  out->status(static_cast<std::int32_t>(p.status));
+  out->flags(p.flags);
+  out->joint_gap(p.joint_errors.gap);
+  out->joint_lock(p.joint_errors.lock);
+  out->joint_limit(p.joint_errors.limit);
+  out->times().contacts_us(p.times.contacts_us);
+  out->times().assembly_us(p.times.assembly_us);
+  out->times().solve_us(p.times.solve_us);
+  out->times().integrate_us(p.times.integrate_us);
+}
+
+bool fromWire(const msg::HandProposal& in, std::size_t bodies, int objects, HandProposal* out, std::string* why) {
+  out->frame = in.stamp().frame();
+  out->scene_frame = in.scene_frame();
+  out->tracked = in.tracked();
+  out->started = in.started();
+  out->lifted_start = in.lifted_start();
+  if (!poses(in.x_old(), bodies, "x_old", &out->X_old, why)) return false;
+  if (!poses(in.x_new(), bodies, "x_new", &out->X_new, why)) return false;
+  out->contact_count = static_cast<int>(in.contact_count());
+  out->loads.resize(in.loads().size());
+  for (std::size_t i = 0; i < in.loads().size(); ++i) {
+    const msg::ContactLoad& c = in.loads()[i];
+    ContactLoad& l = out->loads[i];
+    l.body = c.body();
+    l.object = c.object();
+    l.p_W = vec(c.p());
+    l.n_W = vec(c.n());
+    l.lambda = c.lambda();
+    if (l.body < 0 || static_cast<std::size_t>(l.body) >= bodies || l.object < 0 || l.object >= objects)
+      return fail(why, "loads[" + std::to_string(i) + "]: body or object index out of range");
+    if (!finite(l.p_W) || !finite(l.n_W) || !std::isfinite(l.lambda))
+      return fail(why, "loads[" + std::to_string(i) + "]: not finite");
+  }
+  out->kkt = in.kkt();
+  out->status = status(in.status());
+  out->flags = in.flags();
+  out->joint_errors = JointErrors{in.joint_gap(), in.joint_lock(), in.joint_limit()};
+  out->times = SolverTimes{in.times().contacts_us(), in.times().assembly_us(), in.times().solve_us(),
+                           in.times().integrate_us()};
+  return true;
+}
+
+void toWire(const HandResult& r, const HandModel& model, bool stale, msg::HandState* out) {
+  out->scene_frame(r.scene_frame);
+  out->tracked(r.tracked);
+  out->started(r.started);
+  out->lifted_start(r.lifted_start);
+  out->stale(stale);
+  out->started_inside(r.started_inside);
+  out->loaded(r.loaded);
+  out->toc(r.toc);
+  out->poses().resize(r.X.size());
+  for (std::size_t i = 0; i < r.X.size(); ++i) toWire(r.X[i], &out->poses()[i]);
+  out->shapes().resize(model.bodies.size());
+  for (std::size_t i = 0; i < model.bodies.size(); ++i) toWire(model.bodies[i].shape, &out->shapes()[i]);
+  out->contacts(static_cast<std::uint32_t>(r.contacts));
+  out->kkt(r.kkt);
+  out->status(static_cast<std::int32_t>(r.status));
+  out->flags(r.flags);
+  out->joint_gap(r.joint_errors.gap);
+  out->joint_lock(r.joint_errors.lock);
+  out->joint_limit(r.joint_errors.limit);
+  out->force_n(r.force_N);
+  out->solver_times().contacts_us(r.solver_times.contacts_us);
+  out->solver_times().assembly_us(r.solver_times.assembly_us);
+  out->solver_times().solve_us(r.solver_times.solve_us);
+  out->solver_times().integrate_us(r.solver_times.integrate_us);
+  out->ccd_us(r.ccd_us);
+  out->merge_us(r.merge_us);
+}
+
+bool fromWire(const msg::HandState& in, std::size_t bodies, HandResult* out, std::string* why) {
+  out->frame = in.stamp().frame();
+  out->scene_frame = in.scene_frame();
+  out->present = true;
+  out->tracked = in.tracked();
+  out->started = in.started();
+  out->lifted_start = in.lifted_start();
+  out->started_inside = in.started_inside();
+  out->loaded = in.loaded();
+  out->toc = in.toc();
+  if (!poses(in.poses(), bodies, "poses", &out->X, why)) return false;
+  out->contacts = static_cast<int>(in.contacts());
+  out->kkt = in.kkt();
+  out->status = status(in.status());
+  out->flags = in.flags();
+  out->joint_errors = JointErrors{in.joint_gap(), in.joint_lock(), in.joint_limit()};
+  out->force_N = in.force_n();
+  out->solver_times = SolverTimes{in.solver_times().contacts_us(), in.solver_times().assembly_us(),
+                                  in.solver_times().solve_us(), in.solver_times().integrate_us()};
+  out->ccd_us = in.ccd_us();
+  out->merge_us = in.merge_us();
+  return true;
+}
+
+void toWire(const ForceSet& f, const CollisionWorld& world, msg::ContactForces* out) {
+  // Per-object wrench summary (for renderers and logs): Σ f and Σ (p − o) × f about the object origin.
+  out->objects().clear();
+  for (const AppliedLoad& l : f.loads) {
+    msg::ObjectWrench* w = nullptr;
+    for (msg::ObjectWrench& o : out->objects())
+      if (o.object() == l.object) w = &o;
+    if (!w) {
+      if (out->objects().size() >= kMaxWrenches) continue;
+      out->objects().emplace_back();
+      w = &out->objects().back();
+      w->object(l.object);
+      w->force() = {0, 0, 0};
+      w->torque() = {0, 0, 0};
+    }
+    const Vec3 force = -l.lambda * l.n_W;
+    const Vec3 torque = (l.p_W - world.objectPose(l.object).p).cross(force);
+    for (int k = 0; k < 3; ++k) {
+      w->force()[static_cast<std::size_t>(k)] += force[k];
+      w->torque()[static_cast<std::size_t>(k)] += torque[k];
+    }
+  }
+  const std::size_t n = std::min(f.loads.size(), kMaxApplied);
+  out->contacts().resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const AppliedLoad& l = f.loads[i];
+    msg::AppliedForce& a = out->contacts()[i];
+    a.object(l.object);
+    a.hand(static_cast<std::uint32_t>(l.hand));
+    a.body(l.body);
+    put(l.p_W, &a.p());
+    put(l.n_W, &a.n());
+    a.lambda(l.lambda);
+  }
+  const std::size_t nb = std::min(f.bodies.size(), kMaxGodBodies);
+  out->god_bodies().resize(nb);
+  for (std::size_t i = 0; i < nb; ++i) {
+    const GodBody& g = f.bodies[i];
+    msg::GodBody& w = out->god_bodies()[i];
+    w.hand(static_cast<std::uint32_t>(g.hand));
+    w.body(g.body);
+    toWire(g.shape, &w.shape());
+    toWire(g.X, &w.pose());
+  }
+}
+
+bool fromWire(const msg::ContactForces& in, int objects, ForceSet* out, std::string* why) {
+  out->frame = in.stamp().frame();
+  out->loads.resize(in.contacts().size());
+  for (std::size_t i = 0; i < in.contacts().size(); ++i) {
+    const msg::AppliedForce& a = in.contacts()[i];
+    AppliedLoad& l = out->loads[i];
+    l.object = a.object();
+    l.hand = static_cast<int>(a.hand());
+    l.body = a.body();
+    l.p_W = vec(a.p());
+    l.n_W = vec(a.n());
+    l.lambda = a.lambda();
+    if (l.object < 0 || l.object >= objects) return fail(why, "contacts[" + std::to_string(i) + "]: object index out of range");
+    if (!finite(l.p_W) || !finite(l.n_W) || !std::isfinite(l.lambda) || l.lambda < 0.0)
+      return fail(why, "contacts[" + std::to_string(i) + "]: not finite or negative force");
+  }
+  out->bodies.resize(in.god_bodies().size());
+  for (std::size_t i = 0; i < in.god_bodies().size(); ++i) {
+    const msg::GodBody& w = in.god_bodies()[i];
+    GodBody& g = out->bodies[i];
+    g.hand = static_cast<int>(w.hand());
+    g.body = w.body();
+    const std::uint8_t t = w.shape().type();
+    if (t > static_cast<std::uint8_t>(ShapeType::Box)) return fail(why, "god_bodies[" + std::to_string(i) + "]: unknown shape type");
+    g.shape.type = static_cast<ShapeType>(t);
+    g.shape.radius = w.shape().radius();
+    g.shape.half_length = w.shape().half_length();
+    g.shape.half_extents = vec(w.shape().half_extents());
+    g.X = fromWire(w.pose());
+    if (!isValidPose(g.X, 1e-6) || !std::isfinite(g.shape.radius) || g.shape.radius < 0.0 ||
+        !std::isfinite(g.shape.half_length) || !finite(g.shape.half_extents))
+      return fail(why, "god_bodies[" + std::to_string(i) + "]: bad shape or pose");
+  }
+  return true;
+}
+
+void toWire(const SceneSnapshot& s, msg::SceneState* out) {
+  out->step(s.step);
+  out->forces_applied(s.forces_applied);
+  out->pushouts(static_cast<std::uint32_t>(s.pushouts));
+  out->step_us(s.step_us);
+  const std::size_t n = std::min(s.objects.size(), kMaxObjects);
+  out->objects().resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    msg::ObjectState& o = out->objects()[i];
+    o.index(s.objects[i].index);
+    toWire(s.objects[i].X, &o.pose());
+    put(s.objects[i].v, &o.v());
+    put(s.objects[i].w, &o.w());
+  }
+}
+
+bool fromWire(const msg::SceneState& in, int objects, SceneSnapshot* out, std::string* why) {
+  out->frame = in.stamp().frame();
+  out->step = in.step();
+  out->forces_applied = in.forces_applied();
+  out->pushouts = static_cast<int>(in.pushouts());
+  out->step_us = in.step_us();
+  out->objects.resize(in.objects().size());
+  for (std::size_t i = 0; i < in.objects().size(); ++i) {
+    const msg::ObjectState& o = in.objects()[i];
+    ObjectMotion& m = out->objects[i];
+    m.index = o.index();
+    m.X = fromWire(o.pose());
+    m.v = vec(o.v());
+    m.w = vec(o.w());
+    if (m.index < 0 || m.index >= objects) return fail(why, "objects[" + std::to_string(i) + "]: index out of range");
+    if (!isValidPose(m.X, 1e-6)) return fail(why, "objects[" + std::to_string(i) + "]: pose not finite or not unit");
+  }
+  return true;
+}
+
+void describeScene(const Scene& scene, const std::string& file, msg::SceneDescription* out) {
+  out->name(scene.name.substr(0, 64));
+  out->file(file.size() <= 160 ? file : file.substr(file.size() - 160));
+  const std::size_t n = std::min(scene.objects.size(), kMaxObjects);
+  out->objects().resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const SceneObject& so = scene.objects[i];
+    msg::ObjectDescription& d = out->objects()[i];
+    d.index(static_cast<std::int32_t>(i));
+    d.id(so.id.substr(0, 64));
+    d.mesh(so.source.size() <= 160 ? so.source : so.source.substr(so.source.size() - 160));
+    d.scale(so.scale);
+    d.mass(so.mass);
+    d.dynamic(so.mass > 0.0 && so.physics.type != PhysicsShapeType::None);
+    d.triangles(so.god ? static_cast<std::uint32_t>(so.god->mesh().triangles.size()) : 0u);
+    toWire(so.X_WO, &d.initial_pose());
+  }
+}
+
+}  // namespace godhand::svc

@@ -1,0 +1,123 @@
+// godhand-scene: the Bullet world (core SceneStage). Publishes the SceneDescription (transient
+// local, for late joiners) and SceneState(0), then per frame applies the ContactForces(k) of the
+// resolver, steps one frame period, pushes dynamic objects out of the God objects and publishes
+// SceneState(k). Live: steps on its own clock at the frame rate with the newest forces (without
+// forces, the last known God objects still keep dynamic objects out).
+#include <cstdio>
+#include <map>
+
+#include "physics/physics_world.h"
+#include "runtime/convert.h"
+#include "runtime/service.h"
+#include "scene/scene_file.h"
+
+using namespace godhand;
+using svc::SteadyClock;
+
+namespace {
+constexpr const char* kSynopsis =
+    "The scene: godhand/contact_forces -> Bullet -> godhand/scene_state; godhand/scene_description for late\n"
+    "joiners.";
+
+SteadyClock::time_point after(double s) {
+  return SteadyClock::now() + std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(s));
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  Cli cli("godhand-scene", kSynopsis);
+  svc::CommonOptions common;
+  common.declare(cli);
+  bool no_physics = false;
+  int physics_hz = 240;
+  cli.flag("--no-physics", &no_physics, "do not simulate: dynamic objects stay put");
+  cli.option("--physics-hz", &physics_hz, "HZ", "Bullet's fixed step rate");
+  cli.parse(argc, argv);
+  if (physics_hz < 10 || physics_hz > 100000) cli.fail("--physics-hz must be in [10, 100000]");
+
+  svc::Service service("scene", common, cli);
+  Scene scene;
+  PipelineParams params;
+  std::unique_ptr<SceneStage> stage;
+  try {
+    scene = loadScene(service.sceneFile());
+    params.step.dt = 1.0 / service.frameRate();
+    params.simulate = !no_physics;
+    stage = std::make_unique<SceneStage>(scene, params, physicsParamsFor(service.frameRate(), physics_hz));
+  } catch (const std::exception& e) {
+    cli.fail(e.what());
+  }
+  const int objects = static_cast<int>(scene.objects.size());
+  if (objects > 100) cli.fail(service.sceneFile() + ": " + std::to_string(objects) + " objects; the wire carries at most 100");
+
+  dds::Reader<msg::ContactForces> forces_in(service.dds(), dds::topic::kContactForces, service.streamProfile());
+  dds::Writer<msg::SceneState> state_out(service.dds(), dds::topic::kSceneState, service.stateProfile());
+  dds::Writer<msg::SceneDescription> description_out(service.dds(), dds::topic::kSceneDescription, dds::profile::kState);
+  std::fprintf(stderr, "scene: '%s' (%d objects, %lld God triangles), %.3f Hz, physics %s, %s mode\n", scene.name.c_str(),
+               objects, scene.god_triangles, service.frameRate(), no_physics ? "off" : (std::to_string(physics_hz) + " Hz").c_str(),
+               service.lockstep() ? "lock-step" : "live");
+
+  msg::SceneDescription description;
+  svc::describeScene(scene, service.sceneFile(), &description);
+  description_out.write(description);
+  msg::SceneState out;
+  auto publish = [&](const SceneSnapshot& s, const msg::Stamp& stamp) {
+    svc::toWire(s, &out);
+    out.stamp() = svc::derivedStamp(stamp);
+    out.stamp().frame(s.frame);
+    if (state_out.write(out)) ++service.samples_out;
+    else service.reject("scene_state: write failed");
+  };
+  publish(stage->initial(), msg::Stamp{});
+
+  std::map<std::uint64_t, std::pair<ForceSet, msg::Stamp>> pending;
+  ForceSet last_bodies;  // live: the newest God objects, kept out of dynamic objects between forces
+  std::uint64_t done = 0, last_frame = 0;
+  msg::ContactForces cf;
+  std::string why;
+  const double period = 1.0 / service.frameRate();
+  SteadyClock::time_point tick = SteadyClock::now();
+  while (!service.stopping()) {
+    while (forces_in.take(cf)) {
+      ++service.samples_in;
+      ForceSet f;
+      if (!svc::fromWire(cf, objects, &f, &why)) { service.reject("contact_forces: " + why); continue; }
+      if (service.lockstep() && f.frame <= done) { ++service.late; continue; }
+      pending[f.frame] = {std::move(f), cf.stamp()};
+    }
+    if (service.lockstep()) {
+      auto it = pending.find(done + 1);
+      if (it == pending.end()) {
+        if (!service.wait(after(0.1))) break;
+        continue;
+      }
+      const SceneSnapshot& s = stage->step(&it->second.first, it->first);
+      publish(s, it->second.second);
+      service.processed(it->first, it->second.second.source_time_ns());
+      done = it->first;
+      pending.erase(pending.begin(), pending.upper_bound(done));
+    } else {
+      if (SteadyClock::now() < tick) {
+        if (!service.wait(tick)) break;
+        continue;
+      }
+      tick += std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(period));
+      if (tick < SteadyClock::now()) tick = SteadyClock::now();  // fell behind: do not catch up in a burst
+      if (!pending.empty()) {
+        auto newest = std::prev(pending.end());
+        if (pending.size() > 1) service.late += pending.size() - 1;  // superseded forces are dropped
+        last_bodies.bodies = newest->second.first.bodies;
+        last_frame = newest->first;
+        const SceneSnapshot& s = stage->step(&newest->second.first, newest->first);
+        publish(s, newest->second.second);
+        service.processed(newest->first, newest->second.second.source_time_ns());
+        pending.clear();
+      } else {
+        SceneSnapshot s = stage->step(&last_bodies, last_frame);
+        s.forces_applied = false;
+        publish(s, msg::Stamp{});
+      }
+    }
+  }
+  return service.finish(0);
+}
