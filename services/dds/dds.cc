@@ -98,7 +98,7 @@ std::uint64_t errorMark() {
 }
 
 // The Fast DDS errors logged since `mark`, most specific first ("Error parsing 'x'" and
-// "Problem loading" are consequences: listed last), as "; Fast DDS: a | b", or "".
+// "Problem loading" are consequences: listed last), as ": a | b" (at most 3).
 std::string errorsSince(std::uint64_t mark) {
   fdds::Log::Flush();
   ErrorLog& log = errorLog();
@@ -112,8 +112,8 @@ std::string errorsSince(std::uint64_t mark) {
     (consequence ? last : first).push_back(e.second);
   }
   first.insert(first.end(), last.begin(), last.end());
-  if (first.empty()) return "";
-  std::string out = "; Fast DDS: ";
+  if (first.empty()) return " (no reason given: see the Fast DDS log)";
+  std::string out = ": ";
   for (std::size_t i = 0; i < first.size() && i < 3; ++i) out += (i ? " | " : "") + first[i];
   return out;
 }
@@ -215,23 +215,28 @@ std::string loadProfilesLocked(ProfilesRegistry& reg, const std::string& path) {
   eprosima::fastrtps::ParticipantAttributes pa;
   eprosima::fastrtps::PublisherAttributes wa;
   eprosima::fastrtps::SubscriberAttributes ra;
-  auto clash = [&](const std::string& what) {
-    return std::string(kPrefix) + file + ": " + what +
-           " is already registered in this process from another profiles file (Fast DDS keeps profile names and "
-           "transport ids process-wide: use one godhand profiles file per process; check "
-           "$FASTRTPS_DEFAULT_PROFILES_FILE and ./DEFAULT_FASTRTPS_PROFILES.xml)";
+  // `what` (of kind `list`) is already registered: name the file it came from when we loaded it.
+  auto clash = [&](const std::string& what, const std::string& name,
+                   std::vector<std::string> FileProfiles::*list) {
+    std::string from = "another profiles file ($FASTRTPS_DEFAULT_PROFILES_FILE or ./DEFAULT_FASTRTPS_PROFILES.xml?)";
+    for (const auto& f : reg.files)
+      if (contains(f.second.*list, name)) from = inQuotes(f.first);
+    return std::string(kPrefix) + file + ": " + what + " " + inQuotes(name) +
+           " is already registered in this process from " + from +
+           " (Fast DDS keeps profile names and transport ids process-wide: use one godhand profiles file per process)";
   };
   for (const auto& n : declared.participants)
     if (xml::XMLProfileManager::fillParticipantAttributes(n, pa, false) == xml::XMLP_ret::XML_OK)
-      return clash("participant profile " + inQuotes(n));
+      return clash("participant profile", n, &FileProfiles::participants);
   for (const auto& n : declared.writers)
     if (xml::XMLProfileManager::fillPublisherAttributes(n, wa, false) == xml::XMLP_ret::XML_OK)
-      return clash("data_writer profile " + inQuotes(n));
+      return clash("data_writer profile", n, &FileProfiles::writers);
   for (const auto& n : declared.readers)
     if (xml::XMLProfileManager::fillSubscriberAttributes(n, ra, false) == xml::XMLP_ret::XML_OK)
-      return clash("data_reader profile " + inQuotes(n));
+      return clash("data_reader profile", n, &FileProfiles::readers);
   for (const auto& n : declared.transports)
-    if (xml::XMLProfileManager::getTransportById(n) != nullptr) return clash("transport id " + inQuotes(n));
+    if (xml::XMLProfileManager::getTransportById(n) != nullptr)
+      return clash("transport id", n, &FileProfiles::transports);
   const xml::XMLP_ret ret = xml::XMLProfileManager::loadXMLFile(path);
   if (ret != xml::XMLP_ret::XML_OK)
     return std::string(kPrefix) + file + ": Fast DDS rejected it" +
@@ -405,10 +410,7 @@ void Participant::checkProfiles(const std::string& path) {
   ProfilesRegistry& reg = registry();
   std::lock_guard<std::mutex> lock(reg.mutex);
   auto loaded = reg.loaded.find(path);
-  if (loaded != reg.loaded.end()) {
-    if (!loaded->second.empty()) throw DdsError(loaded->second);
-    return;
-  }
+  if (loaded != reg.loaded.end() && loaded->second.empty()) return;  // loaded fine: parsed fine
   auto it = reg.checked.find(path);
   if (it == reg.checked.end()) {
     std::string error;

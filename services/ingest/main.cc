@@ -61,11 +61,22 @@ int main(int argc, char** argv) {
     cli.fail(e.what());
   }
   std::fprintf(stderr, "ingest: %s -> %zu cluster(s), %s mode, domain %d\n", source->describe().c_str(),
-               lab.clusters.size(), service.lockstep() ? "lock-step" : "live", service.dds().domain());
+               lab.clusters.size(), service.lockstep() ? "lock-step" : "live", common.domain >= 0 ? common.domain : static_cast<int>(lab.domain_id));
 
-  dds::Writer<msg::HandTarget> writer(service.dds(), dds::topic::kHandTarget, service.streamProfile());
-  dds::Reader<msg::HandState> states(service.dds(), dds::topic::kHandState, service.stateProfile());
-  dds::Reader<msg::ServiceStatus> statuses(service.dds(), dds::topic::kServiceStatus, dds::profile::kStatus);
+  service.connect();
+  std::unique_ptr<dds::Writer<msg::HandTarget>> writer_p;
+  std::unique_ptr<dds::Reader<msg::HandState>> states_p;
+  std::unique_ptr<dds::Reader<msg::ServiceStatus>> statuses_p;
+  try {
+    writer_p = std::make_unique<dds::Writer<msg::HandTarget>>(service.dds(), dds::topic::kHandTarget, service.streamProfile());
+    states_p = std::make_unique<dds::Reader<msg::HandState>>(service.dds(), dds::topic::kHandState, service.stateProfile());
+    statuses_p = std::make_unique<dds::Reader<msg::ServiceStatus>>(service.dds(), dds::topic::kServiceStatus, dds::profile::kStatus);
+  } catch (const std::exception& e) {
+    service.fail(e.what());
+  }
+  auto& writer = *writer_p;
+  auto& states = *states_p;
+  auto& statuses = *statuses_p;
 
   // Start barrier: every service of the lab has reported (so no frame is published into the void).
   std::vector<std::string> expected;

@@ -8,6 +8,8 @@
 // --json, a report in godhand-bench's format. In lock-step mode its result_hash equals
 // godhand-bench's for the same recording and scene (clusters in the lab's order: right, left).
 #include <signal.h>
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -69,6 +71,24 @@ std::set<std::string> shmSegments() {
     closedir(d);
   }
   return out;
+}
+
+// A shared-memory entry is left behind when nobody holds its lock any more (what `fastdds shm
+// clean` removes): entries of other, live Fast DDS processes (parallel runs) are not counted.
+size_t orphaned(const std::set<std::string>& before) {
+  size_t n = 0;
+  for (const std::string& name : shmSegments()) {
+    if (before.count(name) || name.size() < 3 || name.compare(name.size() - 3, 3, "_el") == 0) continue;
+    const std::string el = "/dev/shm/" + name + "_el";
+    const int fd = open(el.c_str(), O_RDWR | O_CLOEXEC);
+    if (fd < 0) continue;
+    if (flock(fd, LOCK_EX | LOCK_NB) == 0) {
+      ++n;
+      flock(fd, LOCK_UN);
+    }
+    close(fd);
+  }
+  return n;
 }
 
 std::string tail(const std::string& file, int lines) {
@@ -230,6 +250,11 @@ int main(int argc, char** argv) {
     ht_in = std::make_unique<dds::Reader<msg::HandTarget>>(*dp, dds::topic::kHandTarget, stream_profile);
     st_in = std::make_unique<dds::Reader<msg::ServiceStatus>>(*dp, dds::topic::kServiceStatus, dds::profile::kStatus);
   } catch (const std::exception& e) {
+    hs_in.reset();
+    ss_in.reset();
+    ht_in.reset();
+    st_in.reset();
+    dp.reset();  // a participant alive at exit() leaves its shared-memory segment behind
     cli.fail(e.what());
   }
   const std::set<std::string> shm_before = shmSegments();
@@ -265,7 +290,8 @@ int main(int argc, char** argv) {
   std::map<std::uint64_t, std::vector<msg::HandTarget>> targets;  // frame -> per cluster
   std::uint64_t next_frame = 1, last_fresh_frame = 0;
   std::map<std::string, msg::ServiceStatus> status;
-  double stale_first_s = -1, stale_last_s = -1, resumed_s = -1, killed_s = -1, restarted_s = -1;
+  double stale_first_s = -1, stale_last_s = -1, resumed_s = -1, killed_s = -1, restarted_s = -1, scene_back_s = -1;
+  std::uint64_t last_scene_step = 0;
   bool killed = false;
   int exit_code = 0;
   std::string failure;
@@ -332,6 +358,8 @@ int main(int argc, char** argv) {
       SceneSnapshot snap;
       if (!svc::fromWire(ss, static_cast<int>(scene.objects.size()), &snap, &why)) continue;
       pushouts += snap.pushouts;
+      if (restarted_s >= 0 && scene_back_s < 0 && snap.step < last_scene_step) scene_back_s = secondsSince(t_start);
+      last_scene_step = snap.step;
       if (lockstep) scenes[snap.frame] = snap;
       else
         for (const ObjectMotion& o : snap.objects) world.setObjectPose(o.index, o.X);
@@ -511,10 +539,12 @@ int main(int argc, char** argv) {
   ht_in.reset();
   st_in.reset();
   dp.reset();
-  if (killed) std::system("fastdds shm clean >/dev/null 2>&1");  // the killed process could not release its segments
-  const std::set<std::string> shm_after = shmSegments();
-  size_t shm_left = 0;
-  for (const std::string& s : shm_after) shm_left += !shm_before.count(s);
+  size_t shm_killed = 0;
+  if (killed) {  // the killed process could not release its segments: count them, then clean up
+    shm_killed = orphaned(shm_before);
+    if (std::system("fastdds shm clean >/dev/null 2>&1") != 0) std::fprintf(stderr, "launch: fastdds shm clean failed\n");
+  }
+  const size_t shm_left = orphaned(shm_before);
 
   // Summary.
   const std::uint64_t frames_done = lockstep ? next_frame - 1 : last_fresh_frame;
@@ -533,13 +563,14 @@ int main(int argc, char** argv) {
   std::printf("  penetration max %.4f mm (margin %.3f mm), joint gap max %.2e m, free tracking error max %.2f mm, clipped %ld, scene push-outs %ld\n",
               pen_max * 1e3, margin * 1e3, gap_max, free_err_max * 1e3, clipped, pushouts);
   if (killed)
-    std::printf("  fault drill: %s killed at %.2f s, restarted at %.2f s, stale from %.2f to %.2f s, fresh again at %.2f s (%.2f s after the restart)\n",
+    std::printf("  fault drill: %s killed at %.2f s, restarted at %.2f s, stale from %.2f to %.2f s, fresh again at %.2f s (%.2f s after the restart; a restarted scene's first state seen at %.2f s)\n",
                 kill_service.c_str(), killed_s, restarted_s, stale_first_s, stale_last_s, resumed_s,
-                resumed_s >= 0 && restarted_s >= 0 ? resumed_s - restarted_s : -1.0);
+                resumed_s >= 0 && restarted_s >= 0 ? resumed_s - restarted_s : -1.0, scene_back_s);
   std::printf("  late joiner: %zu of %zu HandStates and the SceneDescription %s%s\n", late_states, C,
               late_description ? "received" : "NOT received",
               late_ms >= 0 ? (" in " + std::to_string(static_cast<int>(late_ms)) + " ms").c_str() : "");
-  std::printf("  shutdown:%s; shared-memory segments left: %zu\n", exits.c_str(), shm_left);
+  std::printf("  shutdown:%s; shared-memory segments left: %zu%s\n", exits.c_str(), shm_left,
+              killed ? (" (" + std::to_string(shm_killed) + " orphaned by the killed process, removed with fastdds shm clean)").c_str() : "");
   if (lockstep) std::printf("  result hash %016llx\n", static_cast<unsigned long long>(hash.h));
   if (!failure.empty()) std::printf("launch: FAILED: %s\n", failure.c_str());
 
@@ -585,10 +616,11 @@ int main(int argc, char** argv) {
     j["services"] = services;
     j["late_joiner"] = {{"hand_states", late_states}, {"scene_description", late_description}, {"ms", late_ms}};
     j["shm_segments_left"] = shm_left;
+  j["shm_segments_orphaned_by_kill"] = shm_killed;
     j["clean_shutdown"] = clean_exits;
     if (killed)
       j["fault_drill"] = {{"service", kill_service}, {"killed_s", killed_s}, {"restarted_s", restarted_s}, {"stale_first_s", stale_first_s},
-                          {"stale_last_s", stale_last_s}, {"resumed_s", resumed_s},
+                          {"stale_last_s", stale_last_s}, {"resumed_s", resumed_s}, {"scene_back_s", scene_back_s},
                           {"resume_after_restart_s", resumed_s >= 0 && restarted_s >= 0 ? resumed_s - restarted_s : -1.0}};
     if (lockstep) {
       char hex[32];

@@ -59,10 +59,23 @@ int main(int argc, char** argv) {
   }
   const int objects = static_cast<int>(scene.objects.size());
 
-  dds::Reader<msg::HandProposal> proposals_in(service.dds(), dds::topic::kHandProposal, service.streamProfile());
-  dds::Reader<msg::SceneState> scene_in(service.dds(), dds::topic::kSceneState, service.stateProfile());
-  dds::Writer<msg::HandState> states_out(service.dds(), dds::topic::kHandState, service.stateProfile());
-  dds::Writer<msg::ContactForces> forces_out(service.dds(), dds::topic::kContactForces, service.streamProfile());
+  service.connect();
+  std::unique_ptr<dds::Reader<msg::HandProposal>> proposals_p;
+  std::unique_ptr<dds::Reader<msg::SceneState>> scene_p;
+  std::unique_ptr<dds::Writer<msg::HandState>> states_p;
+  std::unique_ptr<dds::Writer<msg::ContactForces>> forces_p;
+  try {
+    proposals_p = std::make_unique<dds::Reader<msg::HandProposal>>(service.dds(), dds::topic::kHandProposal, service.streamProfile());
+    scene_p = std::make_unique<dds::Reader<msg::SceneState>>(service.dds(), dds::topic::kSceneState, service.stateProfile());
+    states_p = std::make_unique<dds::Writer<msg::HandState>>(service.dds(), dds::topic::kHandState, service.stateProfile());
+    forces_p = std::make_unique<dds::Writer<msg::ContactForces>>(service.dds(), dds::topic::kContactForces, service.streamProfile());
+  } catch (const std::exception& e) {
+    service.fail(e.what());
+  }
+  auto& proposals_in = *proposals_p;
+  auto& scene_in = *scene_p;
+  auto& states_out = *states_p;
+  auto& forces_out = *forces_p;
   std::fprintf(stderr, "resolver: %zu cluster(s), scene '%s' (%lld triangles), %.3f Hz, %s mode\n", C, scene.name.c_str(),
                scene.god_triangles, service.frameRate(), service.lockstep() ? "lock-step" : "live");
 

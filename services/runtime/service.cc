@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <thread>
 
 #include "common/signals.h"
 #include "math/stats.h"
@@ -32,7 +33,7 @@ double recordingFrameRate(const std::string& recording) {
 }
 
 Service::Service(std::string name, const CommonOptions& options, const Cli& cli)
-    : name_(std::move(name)), opt_(options), started_(SteadyClock::now()) {
+    : name_(std::move(name)), opt_(options), cli_(cli), started_(SteadyClock::now()) {
   installStopHandlers();
   try {
     lab_ = loadLab(opt_.lab);
@@ -52,6 +53,9 @@ Service::Service(std::string name, const CommonOptions& options, const Cli& cli)
       cli.fail(e.what());
     }
   }
+}
+
+void Service::connect() {
   dds::Options o;
   o.domain = opt_.domain >= 0 ? opt_.domain : lab_.domain_id;
   o.profiles = !opt_.profiles.empty() ? opt_.profiles : lab_.profiles;
@@ -61,9 +65,15 @@ Service::Service(std::string name, const CommonOptions& options, const Cli& cli)
     status_ = std::make_unique<dds::Writer<msg::ServiceStatus>>(*participant_, dds::topic::kServiceStatus,
                                                                  dds::profile::kStatus);
   } catch (const std::exception& e) {
-    cli.fail(e.what());
+    fail(e.what());
   }
   heartbeat("starting", true);
+}
+
+void Service::fail(const std::string& reason) {
+  status_.reset();
+  participant_.reset();
+  cli_.fail(reason);
 }
 
 Service::~Service() = default;
@@ -109,7 +119,8 @@ void Service::heartbeat(const std::string& state, bool force) {
   s.rejected(rejected());
   s.late(late);
   s.deadline_misses(deadline_misses);
-  if (status_) status_->write(s);
+  if (!status_) return;
+  status_->write(s);
   frames_since_ = 0;
   latency_.v.clear();
   last_beat_ = now;
@@ -125,7 +136,8 @@ bool Service::wait(SteadyClock::time_point until, const std::string& state) {
     if (now >= until) return true;
     // Short slices: stop requests are polled, heartbeats keep going while idle.
     const SteadyClock::time_point slice = std::min(until, now + std::chrono::milliseconds(20));
-    if (participant_->waitForData(slice)) return !stopRequested();
+    if (!participant_) std::this_thread::sleep_until(slice);
+    else if (participant_->waitForData(slice)) return !stopRequested();
   }
 }
 

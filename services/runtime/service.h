@@ -43,9 +43,15 @@ struct Window {
 
 class Service {
  public:
-  /// Loads the lab, makes the participant and the status writer; any failure: cli.fail (exit 2).
+  /// Loads and checks the lab and the options; any failure: cli.fail (exit 2). No DDS yet, so
+  /// that a main can check the rest of its configuration before any participant exists (a
+  /// participant alive at exit() would leave its shared-memory segment behind).
   Service(std::string name, const CommonOptions& options, const Cli& cli);
   ~Service();
+  /// Makes the participant and the status writer; failure: cli.fail (exit 2).
+  void connect();
+  /// For configuration errors found after connect(): destroys the participant, then cli.fail.
+  [[noreturn]] void fail(const std::string& reason);
 
   const std::string& name() const { return name_; }
   const LabConfig& lab() const { return lab_; }
@@ -79,6 +85,7 @@ class Service {
  private:
   std::string name_;
   CommonOptions opt_;
+  const Cli& cli_;
   LabConfig lab_;
   double frame_rate_ = 0.0;
   std::unique_ptr<dds::Participant> participant_;

@@ -50,9 +50,20 @@ int main(int argc, char** argv) {
   const int objects = static_cast<int>(scene.objects.size());
   if (objects > 100) cli.fail(service.sceneFile() + ": " + std::to_string(objects) + " objects; the wire carries at most 100");
 
-  dds::Reader<msg::ContactForces> forces_in(service.dds(), dds::topic::kContactForces, service.streamProfile());
-  dds::Writer<msg::SceneState> state_out(service.dds(), dds::topic::kSceneState, service.stateProfile());
-  dds::Writer<msg::SceneDescription> description_out(service.dds(), dds::topic::kSceneDescription, dds::profile::kState);
+  service.connect();
+  std::unique_ptr<dds::Reader<msg::ContactForces>> forces_p;
+  std::unique_ptr<dds::Writer<msg::SceneState>> state_p;
+  std::unique_ptr<dds::Writer<msg::SceneDescription>> description_p;
+  try {
+    forces_p = std::make_unique<dds::Reader<msg::ContactForces>>(service.dds(), dds::topic::kContactForces, service.streamProfile());
+    state_p = std::make_unique<dds::Writer<msg::SceneState>>(service.dds(), dds::topic::kSceneState, service.stateProfile());
+    description_p = std::make_unique<dds::Writer<msg::SceneDescription>>(service.dds(), dds::topic::kSceneDescription, dds::profile::kState);
+  } catch (const std::exception& e) {
+    service.fail(e.what());
+  }
+  auto& forces_in = *forces_p;
+  auto& state_out = *state_p;
+  auto& description_out = *description_p;
   std::fprintf(stderr, "scene: '%s' (%d objects, %lld God triangles), %.3f Hz, physics %s, %s mode\n", scene.name.c_str(),
                objects, scene.god_triangles, service.frameRate(), no_physics ? "off" : (std::to_string(physics_hz) + " Hz").c_str(),
                service.lockstep() ? "lock-step" : "live");

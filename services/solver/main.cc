@@ -63,10 +63,23 @@ int main(int argc, char** argv) {
   const size_t n = model.bodies.size();
   const int objects = static_cast<int>(scene.objects.size());
 
-  dds::Reader<msg::HandTarget> targets_in(service.dds(), dds::topic::kHandTarget, service.streamProfile());
-  dds::Reader<msg::SceneState> scene_in(service.dds(), dds::topic::kSceneState, service.stateProfile());
-  dds::Reader<msg::HandState> state_in(service.dds(), dds::topic::kHandState, service.stateProfile());
-  dds::Writer<msg::HandProposal> out(service.dds(), dds::topic::kHandProposal, service.streamProfile());
+  service.connect();
+  std::unique_ptr<dds::Reader<msg::HandTarget>> targets_p;
+  std::unique_ptr<dds::Reader<msg::SceneState>> scene_p;
+  std::unique_ptr<dds::Reader<msg::HandState>> state_p;
+  std::unique_ptr<dds::Writer<msg::HandProposal>> out_p;
+  try {
+    targets_p = std::make_unique<dds::Reader<msg::HandTarget>>(service.dds(), dds::topic::kHandTarget, service.streamProfile());
+    scene_p = std::make_unique<dds::Reader<msg::SceneState>>(service.dds(), dds::topic::kSceneState, service.stateProfile());
+    state_p = std::make_unique<dds::Reader<msg::HandState>>(service.dds(), dds::topic::kHandState, service.stateProfile());
+    out_p = std::make_unique<dds::Writer<msg::HandProposal>>(service.dds(), dds::topic::kHandProposal, service.streamProfile());
+  } catch (const std::exception& e) {
+    service.fail(e.what());
+  }
+  auto& targets_in = *targets_p;
+  auto& scene_in = *scene_p;
+  auto& state_in = *state_p;
+  auto& out = *out_p;
   std::fprintf(stderr, "solver/%s: model %s (%zu bodies), scene '%s' (%lld triangles), %.3f Hz, %s mode\n",
                cluster_name.c_str(), cluster->model.c_str(), n, scene.name.c_str(), scene.god_triangles,
                service.frameRate(), service.lockstep() ? "lock-step" : "live");
