@@ -4,7 +4,7 @@
 # Usage: deploy/install-deps.sh        (as root, or with sudo available)
 set -euo pipefail
 pkgs=(
-  build-essential cmake pkg-config ninja-build python3
+  build-essential cmake pkg-config ninja-build python3 procps iproute2
   libeigen3-dev libbullet-dev libfcl-dev libccd-dev
   libprotobuf-dev protobuf-compiler
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools default-jre-headless

@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
 # godhand's one entry point for people and CI: installs missing Debian packages, builds, runs.
-#   deploy/run.sh demo [bench args]  build, then run the whole method in one process (godhand-bench)
-#                                    on the default scene with the bundled real Leap recordings
+#   deploy/run.sh demo [launch args] build, then launch every service locally over Fast DDS
+#                                    (godhand-launch, deploy/lab/local.pbtxt: the default scene, the
+#                                    bundled two-hand Leap recording) live, printing per-stage rates,
+#                                    end-to-end latency and penetration; then the same recording in
+#                                    lock-step, checked against the in-process run (godhand-bench)
 #   deploy/run.sh test               build, run every test (ctest), then the core tests again
 #                                    and every area's unit tests under AddressSanitizer +
 #                                    UndefinedBehaviorSanitizer
@@ -29,12 +32,24 @@ mkdir -p build
 configure build
 case $mode in
   demo)
-    build build godhand-bench godhand-demo
+    build build godhand-launch godhand-bench
     status=0
-    for rec in pinch confidence2-49fps; do
-      echo "== godhand-bench: deploy/recordings/$rec.json on deploy/scenes/default.pbtxt =="
-      build/bin/godhand-bench --recording deploy/recordings/$rec.json --quiet --check "$@" || status=1
-    done
+    rec=deploy/recordings/confidence2-49fps.json
+    echo "== godhand-launch: every service over Fast DDS (loopback only), live, $rec on deploy/scenes/default.pbtxt =="
+    build/bin/godhand-launch --recording "$rec" --check "$@" || status=1
+    echo "== the same recording in lock-step, against the in-process run (godhand-bench) =="
+    tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
+    build/bin/godhand-bench --recording "$rec" --quiet --json "$tmp/bench.json" | grep -E "step:|result hash" || status=1
+    build/bin/godhand-launch --recording "$rec" --lockstep --quiet --json "$tmp/launch.json" | grep -E "lock-step run|latency|result hash" || status=1
+    python3 - "$tmp/bench.json" "$tmp/launch.json" <<'PY' || status=1
+import json, sys
+b, l = (json.load(open(f)) for f in sys.argv[1:3])
+same = b["result_hash"] == l.get("result_hash")
+print(f"in-process step median {b['step_us']['median']:.0f} us; distributed lock-step frame (tracker sample -> HandState) "
+      f"median {l['latency_us']['median']:.0f} us, p99 {l['latency_us']['p99']:.0f} us; "
+      f"result_hash {'identical' if same else 'DIFFERENT'} ({l.get('result_hash')})")
+sys.exit(0 if same else 1)
+PY
     exit $status
     ;;
   test)
@@ -46,7 +61,7 @@ case $mode in
       -DCMAKE_CXX_FLAGS="-D_GLIBCXX_ASSERTIONS" \
       -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g"
     build build-asan godhand_core_tests godhand_alloc_test godhand_geometry_tests godhand_scene_tests \
-      godhand_physics_tests godhand_bridges_tests godhand_pipeline_tests
+      godhand_physics_tests godhand_bridges_tests godhand_pipeline_tests godhand_launch_tests godhand_services_tests
     ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
       ctest --test-dir build-asan --output-on-failure -j2 --timeout 900 -LE programs
     ;;

@@ -12,7 +12,6 @@
 #include <map>
 #include <mutex>
 #include <set>
-#include <sstream>
 #include <utility>
 
 #include <fastdds/dds/domain/DomainParticipant.hpp>
@@ -199,6 +198,21 @@ FileProfiles scanProfiles(const std::string& path, tinyxml2::XMLDocument& doc) {
   return out;
 }
 
+// The name under which Fast DDS loaded `path` by itself, if it did: $FASTRTPS_DEFAULT_PROFILES_FILE
+// or ./DEFAULT_FASTRTPS_PROFILES.xml naming the same file. "" otherwise.
+std::string loadedByFastDds(const std::string& path) {
+  const char* env = std::getenv("FASTRTPS_DEFAULT_PROFILES_FILE");
+  const char* skip = std::getenv("SKIP_DEFAULT_XML_FILE");
+  std::vector<std::string> candidates;
+  if (env != nullptr && *env != '\0') candidates.push_back(env);
+  if (skip == nullptr || skip[0] != '1') candidates.push_back("DEFAULT_FASTRTPS_PROFILES.xml");
+  for (const auto& c : candidates) {
+    std::error_code ec;
+    if (c == path || std::filesystem::equivalent(c, path, ec)) return c;
+  }
+  return "";
+}
+
 std::string loadProfilesLocked(ProfilesRegistry& reg, const std::string& path) {
   tinyxml2::XMLDocument doc;
   FileProfiles declared;
@@ -225,6 +239,15 @@ std::string loadProfilesLocked(ProfilesRegistry& reg, const std::string& path) {
            " is already registered in this process from " + from +
            " (Fast DDS keeps profile names and transport ids process-wide: use one godhand profiles file per process)";
   };
+  // A file Fast DDS loaded itself is registered already (under that name): no clash with itself.
+  const std::string alias = loadedByFastDds(path);
+  if (!alias.empty()) {
+    const xml::XMLP_ret ret = xml::XMLProfileManager::loadXMLFile(alias);  // "already parsed" when it went well
+    if (ret != xml::XMLP_ret::XML_OK)
+      return std::string(kPrefix) + file + ": Fast DDS rejected it" + errorsSince(mark);
+    reg.files[path] = std::move(declared);
+    return "";
+  }
   for (const auto& n : declared.participants)
     if (xml::XMLProfileManager::fillParticipantAttributes(n, pa, false) == xml::XMLP_ret::XML_OK)
       return clash("participant profile", n, &FileProfiles::participants);
@@ -272,12 +295,19 @@ std::string locatorString(const Locator_t& l) {
 }
 
 template <class Qos>
-QosInfo qosInfo(const Qos& q) {
+QosInfo qosInfo(const Qos& q) {  // what DataWriterQos and DataReaderQos share
   QosInfo out;
   out.reliable = q.reliability().kind == fdds::RELIABLE_RELIABILITY_QOS;
   out.transient_local = q.durability().kind != fdds::VOLATILE_DURABILITY_QOS;
   out.keep_all = q.history().kind == fdds::KEEP_ALL_HISTORY_QOS;
   out.depth = q.history().depth;
+  out.max_samples = q.resource_limits().max_samples;
+  return out;
+}
+
+QosInfo qosInfo(const fdds::DataWriterQos& q) {
+  QosInfo out = qosInfo<fdds::DataWriterQos>(q);
+  out.synchronous = q.publish_mode().kind == fdds::SYNCHRONOUS_PUBLISH_MODE;
   return out;
 }
 

@@ -53,6 +53,8 @@ struct QosInfo {
   bool transient_local = false;        // TRANSIENT_LOCAL (or stronger; else VOLATILE)
   bool keep_all = false;               // KEEP_ALL (else KEEP_LAST depth)
   int depth = 0;                       // history depth
+  int max_samples = 0;                 // resource limit (-1 or 0: unlimited)
+  bool synchronous = false;            // writers: SYNCHRONOUS publish mode (readers: false)
 };
 
 struct ParticipantInfo {

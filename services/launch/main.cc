@@ -500,6 +500,15 @@ int main(int argc, char** argv) {
   }
   const double run_s = secondsSince(t_start);
 
+  // The services' last heartbeats (period 0.5 s) carry their final counters.
+  if (failure.empty() && !stopRequested()) {
+    const Clock::time_point until = Clock::now() + std::chrono::milliseconds(1200);
+    while (Clock::now() < until) {
+      dp->waitForData(Clock::now() + std::chrono::milliseconds(50));
+      drain();
+    }
+  }
+
   // Late joiner: a fresh participant must get every cluster's last HandState and the scene.
   double late_ms = -1;
   size_t late_states = 0;
@@ -555,8 +564,8 @@ int main(int argc, char** argv) {
   std::printf("  end-to-end latency (tracker sample -> HandState here): median %.0f us, p99 %.0f us, max %.0f us\n", lat_med,
               lat_p99, percentile(latency_us, 1.0));
   for (const auto& s : status)
-    std::printf("  %-14s frame %llu, in %llu, out %llu, rejected %llu, late %llu, deadline misses %llu, state %s\n",
-                s.first.c_str(), static_cast<unsigned long long>(s.second.frame()),
+    std::printf("  %-14s frame %llu, source->output %.0f us, in %llu, out %llu, rejected %llu, late %llu, deadline misses %llu, state %s\n",
+                s.first.c_str(), static_cast<unsigned long long>(s.second.frame()), s.second.latency_median_us(),
                 static_cast<unsigned long long>(s.second.samples_in()), static_cast<unsigned long long>(s.second.samples_out()),
                 static_cast<unsigned long long>(s.second.rejected()), static_cast<unsigned long long>(s.second.late()),
                 static_cast<unsigned long long>(s.second.deadline_misses()), s.second.state().c_str());

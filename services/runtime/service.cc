@@ -113,7 +113,8 @@ void Service::heartbeat(const std::string& state, bool force) {
   s.state(state);
   s.frame(frame_);
   s.rate_hz(last_beat_ == SteadyClock::time_point{} || since <= 0.0 ? 0.0 : static_cast<double>(frames_since_) / since);
-  s.latency_median_us(latency_.percentile(0.5));
+  if (!latency_.v.empty()) last_latency_us_ = latency_.percentile(0.5);  // an idle window keeps the last figure
+  s.latency_median_us(last_latency_us_);
   s.samples_in(samples_in);
   s.samples_out(samples_out);
   s.rejected(rejected());

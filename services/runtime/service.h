@@ -93,6 +93,7 @@ class Service {
   std::map<std::string, std::uint64_t> rejects_;
   std::uint64_t frame_ = 0, frames_since_ = 0;
   Window latency_;
+  double last_latency_us_ = 0.0;
   SteadyClock::time_point last_beat_{};
   SteadyClock::time_point started_;
 };

@@ -155,7 +155,7 @@ std::string shmEntriesLeft(const std::set<std::string>& entries, Clock::duration
 constexpr const char* kChildEnv = "GODHAND_DDS_TEST_CHILD";
 constexpr auto kChildDeadline = 30s;
 
-pid_t spawnChild(const std::string& role, int domain) {
+pid_t spawnChild(const std::string& role, int domain, const std::vector<std::string>& extra_env = {}) {
   char exe[4096];
   const ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
   if (n <= 0) return -1;
@@ -164,6 +164,7 @@ pid_t spawnChild(const std::string& role, int domain) {
   for (char** e = environ; *e != nullptr; ++e)
     if (std::string(*e).rfind(std::string(kChildEnv) + "=", 0) != 0) env_strings.push_back(*e);
   env_strings.push_back(std::string(kChildEnv) + "=" + role + ":" + std::to_string(domain));
+  env_strings.insert(env_strings.end(), extra_env.begin(), extra_env.end());
   std::vector<char*> envp;
   for (auto& e : env_strings) envp.push_back(e.data());
   envp.push_back(nullptr);
@@ -187,9 +188,21 @@ int waitChild(pid_t pid, Clock::duration timeout) {
 
 // "state-writer": writes one HandState (handState(1, 77, 16)) on godhand.state, then stays until
 // a reader has matched and gone again. "status-reader": waits for the ServiceStatus of
-// "test/parent". Exit 0 on success, 3 on a deadline.
+// "test/parent". "env-default": with $FASTRTPS_DEFAULT_PROFILES_FILE naming godhand-local.xml
+// (Fast DDS loads it itself), participants from Options::profiles "" and from the same file by
+// name both work, and a writer and reader of theirs match. Exit 0 on success, 3 on a deadline.
 int runChild(const std::string& role, int domain) {
   const Clock::time_point deadline = Clock::now() + kChildDeadline;
+  if (role == "env-default") {
+    dds::Options by_env;
+    by_env.domain = domain;
+    dds::Participant a(by_env);
+    dds::Participant b(options(domain, "test/child-by-name"));
+    if (a.profilesFile() != kLocal || a.info().builtin_transports) return 7;
+    dds::Writer<msg::HandState> w(a, dds::topic::kHandState, dds::profile::kState);
+    dds::Reader<msg::HandState> r(b, dds::topic::kHandState, dds::profile::kState);
+    return waitFor([&] { return w.matched() == 1 && r.matched() == 1; }, deadline - Clock::now()) ? 0 : 3;
+  }
   dds::Participant p(options(domain, "test/child-" + role));
   if (role == "state-writer") {
     dds::Writer<msg::HandState> w(p, dds::topic::kHandState, dds::profile::kState);
@@ -242,7 +255,7 @@ TEST(DdsProfiles, DefaultProfilesFileIsTheShippedOneUnlessTheEnvironmentNamesOne
     ASSERT_GE(def.size(), tail.size());
     EXPECT_EQ(def.substr(def.size() - tail.size()), tail);
     dds::Options o;
-    o.domain = 100;  // the default file is the shipped one: same loopback-only participant
+    o.domain = 118;  // the default file is the shipped one: same loopback-only participant
     dds::Participant p(o);
     EXPECT_FALSE(p.info().builtin_transports);
     EXPECT_EQ(p.info().udp_whitelist, (std::vector<std::string>{"127.0.0.1"}));
@@ -268,10 +281,11 @@ TEST(DdsQos, EachProfileGivesItsQos) {
     dds::QosInfo qos;
   };
   const Expect expected[] = {
-      {dds::profile::kStreamLive, {false, false, false, 1}},
-      {dds::profile::kLockStep, {true, true, false, 256}},
-      {dds::profile::kState, {true, true, false, 1}},
-      {dds::profile::kStatus, {true, true, false, 1}},
+      // reliable, transient_local, keep_all, depth, max_samples (bounded memory), synchronous (writers)
+      {dds::profile::kStreamLive, {false, false, false, 1, 64, true}},
+      {dds::profile::kLockStep, {true, true, false, 256, 4096, true}},
+      {dds::profile::kState, {true, true, false, 1, 64, true}},
+      {dds::profile::kStatus, {true, true, false, 1, 256, true}},
   };
   for (const Expect& e : expected) {
     SCOPED_TRACE(e.profile);
@@ -283,7 +297,10 @@ TEST(DdsQos, EachProfileGivesItsQos) {
       EXPECT_EQ(got.transient_local, e.qos.transient_local);
       EXPECT_EQ(got.keep_all, e.qos.keep_all);
       EXPECT_EQ(got.depth, e.qos.depth);
+      EXPECT_EQ(got.max_samples, e.qos.max_samples);
     }
+    EXPECT_EQ(w.qos().synchronous, e.qos.synchronous);
+    EXPECT_FALSE(r.qos().synchronous);
     EXPECT_EQ(w.topic(), topic);
   }
 }
@@ -712,6 +729,12 @@ TEST(DdsCrossProcess, HandStateFromAnotherProcessArrivesBitIdenticalAndItsShmIsR
   EXPECT_FALSE(child_shm.empty());
   const std::string left = shmEntriesLeft(child_shm, 2s);
   EXPECT_TRUE(left.empty()) << "left in /dev/shm by the child: " << left;
+}
+
+TEST(DdsCrossProcess, ProfilesFileThatFastDdsLoadedItselfIsNotAClash) {
+  const pid_t child = spawnChild("env-default", 117, {"FASTRTPS_DEFAULT_PROFILES_FILE=" + kLocal});
+  ASSERT_GT(child, 0);
+  EXPECT_EQ(waitChild(child, kChildDeadline), 0);
 }
 
 TEST(DdsCrossProcess, ManyProcessesOnOneHostAllMatch) {
