@@ -143,9 +143,9 @@ def case_loopback(recording):
     if not shutil.which("unshare") or not shutil.which("ip"):
         print("SKIP: needs unshare and ip (iproute2)")
         sys.exit(77)
-    probe = subprocess.run(["unshare", "-rn", "true"], capture_output=True)
+    probe = subprocess.run(["unshare", "-rn", "sh", "-c", "ip link add v0 type veth peer name v1"], capture_output=True)
     if probe.returncode != 0:
-        print("SKIP: cannot create a network namespace here: " + probe.stderr.decode().strip())
+        print("SKIP: cannot create a network namespace with a veth pair here: " + probe.stderr.decode().strip())
         sys.exit(77)
     # The control profile: the shipped one with its participant replaced by one that uses Fast
     # DDS's built-in transports (the topic profiles stay, so every entity is created as usual).
