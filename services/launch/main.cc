@@ -123,7 +123,7 @@ int main(int argc, char** argv) {
   bool lockstep = false, quiet = false, check = false, restart = false, no_physics = false;
   double speed = 1.0, restart_delay = 0.5, deadline = 0.0, start_timeout = 60.0;
   cli.option("--lab", &lab_file, "FILE", "lab configuration");
-  cli.option("--domain", &domain, "N", "DDS domain id (default: the lab's)");
+  cli.option("--domain", &domain, "N", "DDS domain id 0..232; -1 = the lab's");
   cli.flag("--lockstep", &lockstep, "lock-step: deterministic, every stage waits for each frame's inputs");
   cli.option("--recording", &recording, "FILE", "tracker recording (default: the lab's)");
   cli.option("--scene", &scene_file, "FILE", "scene file (default: the lab's)");
@@ -133,10 +133,10 @@ int main(int argc, char** argv) {
   cli.option("--physics-hz", &physics_hz, "HZ", "Bullet's fixed step rate");
   cli.flag("--no-physics", &no_physics, "no Bullet: dynamic objects stay put");
   cli.option("--speed", &speed, "X", "live replay speed factor");
-  cli.option("--deadline", &deadline, "S", "lock-step input deadline of every stage (default: the lab's)");
+  cli.option("--deadline", &deadline, "S", "lock-step input deadline of every stage; 0 = the lab's");
   cli.option("--start-timeout", &start_timeout, "S", "how long the services may take to come up");
   cli.option("--bin-dir", &bin_dir, "DIR", "where the godhand-* executables are (default: next to this one)");
-  cli.option("--log-dir", &log_dir, "DIR", "service logs (default: a fresh directory under /tmp)");
+  cli.option("--log-dir", &log_dir, "DIR", "keep the service logs here (default: a fresh directory under /tmp, removed after a clean run)");
   cli.flag("--restart", &restart, "live: restart a service that dies (after --restart-delay)");
   cli.option("--restart-delay", &restart_delay, "S", "delay before a restart");
   cli.option("--kill", &kill_spec, "SERVICE@S", "fault drill: SIGKILL SERVICE S seconds into the run (e.g. scene@2)");
@@ -192,7 +192,8 @@ int main(int argc, char** argv) {
   const double margin = RowParams{}.margin;
 
   // Service command lines.
-  if (log_dir.empty()) log_dir = "/tmp/godhand-launch-" + std::to_string(getpid());
+  const bool own_log_dir = log_dir.empty();  // removed again after a clean run
+  if (own_log_dir) log_dir = "/tmp/godhand-launch-" + std::to_string(getpid());
   mkdir(log_dir.c_str(), 0755);
   struct stat st{};
   if (stat(log_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) cli.fail("--log-dir " + log_dir + ": cannot create");
@@ -645,6 +646,10 @@ int main(int argc, char** argv) {
     }
   }
   if (!failure.empty()) exit_code = 1;
+  if (own_log_dir && failure.empty() && clean_exits) {
+    for (const ChildSpec& c : specs) std::remove(c.log_file.c_str());
+    rmdir(log_dir.c_str());
+  }
   if (check) {
     const bool frames_ok = !lockstep || frames_done == static_cast<std::uint64_t>(n_frames);
     const bool ok = failure.empty() && pen_max <= margin && gap_max <= 1e-6 && failures == 0 && frames_ok && states > 0;

@@ -17,12 +17,12 @@ namespace godhand::svc {
 void CommonOptions::declare(Cli& cli) {
   lab = std::string(GODHAND_DEPLOY_DIR) + "/lab/local.pbtxt";
   cli.option("--lab", &lab, "FILE", "lab configuration: clusters, models, scene, recording, services");
-  cli.option("--domain", &domain, "N", "DDS domain id (0..232; default: the lab's)");
+  cli.option("--domain", &domain, "N", "DDS domain id 0..232; -1 = the lab's");
   cli.option("--profiles", &profiles, "FILE", "Fast DDS XML profiles (default: the lab's, else deploy/dds/godhand-local.xml)");
   cli.flag("--lockstep", &lockstep, "lock-step mode: wait (with a deadline) for every input of each frame; deterministic");
   cli.option("--scene", &scene, "FILE", "scene file (default: the lab's)");
-  cli.option("--frame-rate", &frame_rate, "HZ", "tracker frame rate (default: the lab recording's mean rate)");
-  cli.option("--deadline", &deadline_s, "S", "lock-step: seconds to wait for a frame's remaining inputs (default: the lab's)");
+  cli.option("--frame-rate", &frame_rate, "HZ", "tracker frame rate; 0 = the lab recording's mean rate");
+  cli.option("--deadline", &deadline_s, "S", "lock-step: seconds to wait for a frame's remaining inputs; 0 = the lab's");
   cli.option("--status-period", &status_period_s, "S", "ServiceStatus heartbeat period");
 }
 
