@@ -297,7 +297,10 @@ int main(int argc, char** argv) {
   int exit_code = 0;
   std::string failure;
 
+  Clock::time_point t_first_state{}, t_last_state{};
   auto measure = [&](const msg::HandState& h, const SceneSnapshot* snap, double lat_us) {
+    if (states == 0) t_first_state = Clock::now();
+    t_last_state = Clock::now();
     ++states;
     if (snap)
       for (const ObjectMotion& o : snap->objects) world.setObjectPose(o.index, o.X);
@@ -559,11 +562,14 @@ int main(int argc, char** argv) {
   // Summary.
   const std::uint64_t frames_done = lockstep ? next_frame - 1 : last_fresh_frame;
   const double lat_med = percentile(latency_us, 0.5), lat_p99 = percentile(latency_us, 0.99);
+  // Frames per second from the first to the last HandState received (startup excluded).
+  const double span_s = std::chrono::duration<double>(t_last_state - t_first_state).count();
+  const double fps = frames_done > 1 && span_s > 0 ? static_cast<double>(frames_done - 1) / span_s : 0.0;
   std::printf("launch: %s run of %.1f s: %llu of %lld frames %s, %ld hand states received (%ld stale)\n",
               lockstep ? "lock-step" : "live", run_s, static_cast<unsigned long long>(frames_done),
               static_cast<long long>(n_frames), lockstep ? "complete" : "seen fresh", states, stale);
-  std::printf("  end-to-end latency (tracker sample -> HandState here): median %.0f us, p99 %.0f us, max %.0f us\n", lat_med,
-              lat_p99, percentile(latency_us, 1.0));
+  std::printf("  end-to-end latency (tracker sample -> HandState here): median %.0f us, p99 %.0f us, max %.0f us; %.1f frames/s\n",
+              lat_med, lat_p99, percentile(latency_us, 1.0), fps);
   for (const auto& s : status)
     std::printf("  %-14s frame %llu, source->output %.0f us, in %llu, out %llu, rejected %llu, late %llu, deadline misses %llu, state %s\n",
                 s.first.c_str(), static_cast<unsigned long long>(s.second.frame()), s.second.latency_median_us(),
@@ -600,6 +606,7 @@ int main(int argc, char** argv) {
     j["hz_median"] = lat_med > 0 ? 1e6 / lat_med : 0.0;
     j["latency_us"] = {{"median", lat_med}, {"p99", lat_p99}, {"max", percentile(latency_us, 1.0)}, {"samples", latency_us.size()}};
     j["run_s"] = run_s;
+  j["frames_per_s"] = fps;
     j["stages_us"] = {{"contacts", percentile(st_contacts, 0.5)}, {"assembly", percentile(st_assembly, 0.5)},
                       {"solve", percentile(st_solve, 0.5)},       {"integrate", percentile(st_integrate, 0.5)},
                       {"ccd", percentile(st_ccd, 0.5)},           {"merge", percentile(st_merge, 0.5)},
