@@ -265,11 +265,35 @@ int main(int argc, char** argv) {
               static_cast<long long>(n_frames), rate, scene.name.c_str());
   std::printf("launch: service logs in %s\n", log_dir.c_str());
   std::fflush(stdout);
+  std::map<std::string, msg::ServiceStatus> status;
   Supervisor sup;
+  const Clock::time_point t_start = Clock::now();
   try {
-    // The ingest last (it waits for the others anyway).
     for (const ChildSpec& c : specs)
       if (c.name != "ingest") sup.start(c);
+    // The ingest last, once every other service runs and this monitor is matched with the
+    // resolver's HandState and the scene's SceneState writers: a monitor that matched late would
+    // miss the first frames (a lock-step run of a short recording is over in a second or two).
+    const Clock::time_point until = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(start_timeout));
+    for (;;) {
+      msg::ServiceStatus s;
+      while (st_in->take(s)) status[s.service().to_string()] = s;
+      bool ready = hs_in->matched() >= 1 && ss_in->matched() >= 1;
+      for (const LabService& ls : lab.services)
+        if (ls.kind != pb::Service::INGEST) ready = ready && status.count(ls.name) && status[ls.name].state() == "running";
+      if (ready) break;
+      std::string dead;
+      for (const ChildStatus& c : sup.poll()) dead += " " + c.name;
+      if (!dead.empty() || stopRequested() || Clock::now() >= until) {
+        std::string why = !dead.empty() ? "service(s) ended during start-up:" + dead
+                        : stopRequested() ? "stopped during start-up" : "services not running after " + fmt17(start_timeout) + " s";
+        for (const ChildSpec& c : specs) why += "\n  " + c.name + ":\n" + tail(c.log_file, 6);
+        sup.stop(std::chrono::milliseconds(3000));
+        std::fprintf(stderr, "godhand-launch: %s\n", why.c_str());
+        return stopRequested() ? 0 : 1;
+      }
+      dp->waitForData(Clock::now() + std::chrono::milliseconds(50));
+    }
     for (const ChildSpec& c : specs)
       if (c.name == "ingest") sup.start(c);
   } catch (const std::exception& e) {
@@ -277,7 +301,6 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "godhand-launch: %s\n", e.what());
     return 2;
   }
-  const Clock::time_point t_start = Clock::now();
 
   // Measurements.
   std::vector<double> latency_us, window_latency;
@@ -290,7 +313,6 @@ int main(int argc, char** argv) {
   std::map<std::uint64_t, SceneSnapshot> scenes;        // lock-step: frame -> scene
   std::map<std::uint64_t, std::vector<msg::HandTarget>> targets;  // frame -> per cluster
   std::uint64_t next_frame = 1, last_fresh_frame = 0;
-  std::map<std::string, msg::ServiceStatus> status;
   double stale_first_s = -1, stale_last_s = -1, resumed_s = -1, killed_s = -1, restarted_s = -1, scene_back_s = -1;
   std::uint64_t last_scene_step = 0;
   bool killed = false;
