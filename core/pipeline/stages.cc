@@ -103,6 +103,15 @@ void HandSolver::adopt(const HandResult& result) {
   last_errors_ = result.joint_errors;
 }
 
+void HandSolver::resume(const HandResult& result) {
+  if (started_ || !result.started || result.X.size() != model_.bodies.size()) return;
+  for (const Pose& X : result.X)
+    if (!isValidPose(X, 1e-6)) return;
+  stepper_->reset(result.X);
+  started_ = true;
+  last_errors_ = result.joint_errors;
+}
+
 bool HandSolver::start(const HandInput& in) {
   // Start pose: the targets, with undriven or invalid ones taken from the model's rest pose
   // relative to the palm (body 0) target.

@@ -178,6 +178,10 @@ class HandSolver {
   void setScene(const SceneSnapshot& snapshot);
   /// The resolver's result for this hand becomes the start of the next step.
   void adopt(const HandResult& result);
+  /// A solver that (re)starts while its hand already exists (a restarted process, the resolver's
+  /// last HandState at hand): the hand goes on from its resolved pose instead of jumping to the
+  /// new target (which the sweep would never see). No-op once started or for an unstarted result.
+  void resume(const HandResult& result);
   const HandProposal& step(const HandInput& input, std::uint64_t frame);
 
   bool started() const { return started_; }

@@ -168,7 +168,10 @@ int main(int argc, char** argv) {
         have_resolved = true;
         adopted_frame = resolved.frame;
       }
-      if (have_resolved) solver->adopt(resolved);
+      if (have_resolved) {
+        solver->resume(resolved);  // a restarted solver goes on from the hand's last resolved pose
+        solver->adopt(resolved);
+      }
     }
     const msg::HandTarget& target = targets[next];
     HandInput in;

@@ -6,7 +6,7 @@ participants on the shipped loopback profile) in its own DDS domain, bounds ever
 that nothing is left behind: no process of its domain, no new shared-memory segment.
 
 usage: distributed.py CASE BIN_DIR DEPLOY_DIR DOMAIN [args]
-cases: same-hash RECORDING | live RECORDING | kill-scene RECORDING | rejects | loopback
+cases: same-hash RECORDING | live RECORDING | kill SERVICE RECORDING | rejects | loopback RECORDING
 """
 import json
 import os
@@ -93,12 +93,12 @@ def case_live(recording):
     common_checks(j)
 
 
-def case_kill_scene(recording):
-    r, j = launch(["--recording", recording, "--kill", "scene@1.5", "--restart-delay", "0.5"])
+def case_kill(service, recording):
+    r, j = launch(["--recording", recording, "--kill", service + "@1.5", "--restart-delay", "0.5"])
     check(r.returncode == 0, "godhand-launch with the fault drill exited 0")
     d = j.get("fault_drill", {})
-    check(d.get("killed_s", -1) > 0 and d.get("restarted_s", -1) > d.get("killed_s", 0), f"scene killed then restarted ({d})")
-    check(j.get("stale_states", 0) > 0, f"hands were marked stale while the scene was gone ({j.get('stale_states')})")
+    check(d.get("killed_s", -1) > 0 and d.get("restarted_s", -1) > d.get("killed_s", 0), f"{service} killed then restarted ({d})")
+    check(j.get("stale_states", 0) > 0, f"hands were marked stale while {service} was gone ({j.get('stale_states')})")
     check(d.get("resumed_s", -1) > d.get("restarted_s", 0),
           f"fresh states again after the restart: {d.get('resume_after_restart_s', -1):.2f} s after it")
     check(j.get("penetration_max_m", 1) <= j.get("margin_m", 0),
@@ -213,8 +213,8 @@ try:
         case_same_hash(ARGS[0])
     elif CASE == "live":
         case_live(ARGS[0])
-    elif CASE == "kill-scene":
-        case_kill_scene(ARGS[0])
+    elif CASE == "kill":
+        case_kill(ARGS[0], ARGS[1])
     elif CASE == "rejects":
         case_rejects()
     elif CASE == "loopback":
