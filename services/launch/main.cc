@@ -233,6 +233,8 @@ int main(int argc, char** argv) {
     for (char& ch : file)
       if (ch == '/') ch = '-';
     c.log_file = log_dir + "/" + file + ".log";
+    // Fast DDS loads the lab's profiles itself (its standard variable); the services then use them.
+    c.env.push_back({"FASTRTPS_DEFAULT_PROFILES_FILE", dds::Participant::resolveProfiles(lab.profiles)});
     specs.push_back(std::move(c));
   }
 
