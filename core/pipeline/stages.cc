@@ -287,6 +287,11 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
       if (r.started) ++counters_.held;
       continue;
     }
+    // The motion the users see starts at this hand's last result. In lock-step (and in process)
+    // the proposal's X_old is that result bit for bit; a live solver that did not have it yet
+    // stepped from an older one, and sweeping from there would let the hand jump back unswept.
+    const bool continuing = r.started && r.X.size() == n;
+    hand.X_from = continuing ? r.X : p->X_old;
     r.present = true;
     r.frame = frame;
     r.scene_frame = p->scene_frame;
@@ -305,18 +310,18 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
     r.solver_times = p->times;
     r.ccd_us = r.merge_us = 0.0;
     if (!p->tracked || !p->started) {  // frozen: no motion, no forces
-      r.X = p->X_old;
+      r.X = hand.X_from;
       continue;
     }
     // ccd: TOC_min of this cluster
     Clock::time_point t0 = Clock::now();
     double toc = 1.0;
     for (size_t b = 0; b < n; ++b) {
-      const geo::SweepResult s = collision_.sweep(hand.model->bodies[b].shape, p->X_old[b], p->X_new[b], params_.sweep);
+      const geo::SweepResult s = collision_.sweep(hand.model->bodies[b].shape, hand.X_from[b], p->X_new[b], params_.sweep);
       if (s.started_inside) r.started_inside = true;
       if (trace_ >= 2 && s.toc < 1.0)
         std::fprintf(stderr, "trace: body %zu toc %.3g hit %d inside %d it %d d %.3g move %.3g\n", b, s.toc, s.hit,
-                     s.started_inside, s.iterations, s.distance, (p->X_new[b].p - p->X_old[b].p).norm());
+                     s.started_inside, s.iterations, s.distance, (p->X_new[b].p - hand.X_from[b].p).norm());
       toc = std::min(toc, s.toc);
     }
     if (r.started_inside) ++counters_.started_inside;
@@ -327,7 +332,7 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
     applyForces(static_cast<int>(h), *p);  // λ of this step's contacts
     if (toc < 1.0) {
       // Algorithm 1: move to TOC_min, update the contacts there, re-close the joints against them.
-      hand.stepper->setMotion(p->X_old, p->X_new);
+      hand.stepper->setMotion(hand.X_from, p->X_new);
       hand.stepper->interpolate(toc);
       hand.contacts.clear();
       const std::vector<Pose>& X = hand.stepper->poses();

@@ -235,6 +235,7 @@ class Resolver {
     std::unique_ptr<ClusterStepper> stepper;  // clip + reproject only
     HandResult result;
     std::vector<Contact> contacts;            // scratch
+    std::vector<Pose> X_from;                 // scratch: start of the resolved motion
   };
   void applyForces(int h, const HandProposal& p);
 

@@ -147,6 +147,7 @@ void toWire(const HandResult& r, const HandModel& model, bool stale, msg::HandSt
   out->started(r.started);
   out->lifted_start(r.lifted_start);
   out->stale(stale);
+  out->held(!r.present);
   out->started_inside(r.started_inside);
   out->loaded(r.loaded);
   out->toc(r.toc);
@@ -173,7 +174,7 @@ void toWire(const HandResult& r, const HandModel& model, bool stale, msg::HandSt
 bool fromWire(const msg::HandState& in, std::size_t bodies, HandResult* out, std::string* why) {
   out->frame = in.stamp().frame();
   out->scene_frame = in.scene_frame();
-  out->present = true;
+  out->present = !in.held();
   out->tracked = in.tracked();
   out->started = in.started();
   out->lifted_start = in.lifted_start();

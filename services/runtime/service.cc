@@ -41,7 +41,9 @@ Service::Service(std::string name, const CommonOptions& options, const Cli& cli)
     cli.fail(e.what());
   }
   if (opt_.domain < -1 || opt_.domain > 232) cli.fail("--domain must be in 0..232");
-  if (!(opt_.deadline_s >= 0.0 && std::isfinite(opt_.deadline_s))) cli.fail("--deadline must be >= 0");
+  if (!(opt_.deadline_s >= 0.0 && opt_.deadline_s <= 3600.0)) cli.fail("--deadline must be in [0, 3600] s");
+  if (lab_.deadline_s > 3600.0) cli.fail(lab_.file + ": deadline_s must be <= 3600 s");
+  if (lab_.stale_after_s > 3600.0) cli.fail(lab_.file + ": stale_after_s must be <= 3600 s");
   if (!(opt_.status_period_s > 0.0 && opt_.status_period_s < 60.0)) cli.fail("--status-period must be in (0, 60) s");
   if (!(opt_.frame_rate >= 0.0 && opt_.frame_rate < 10000.0)) cli.fail("--frame-rate must be in (0, 10000) Hz");
   frame_rate_ = opt_.frame_rate;

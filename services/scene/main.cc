@@ -115,11 +115,15 @@ int main(int argc, char** argv) {
       tick += std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(period));
       if (tick < SteadyClock::now()) tick = SteadyClock::now();  // fell behind: do not catch up in a burst
       if (!pending.empty()) {
+        // Every ContactForces that came in since the last tick is applied (their impulses add up
+        // over this step); the newest God objects keep dynamic objects out.
         auto newest = std::prev(pending.end());
-        if (pending.size() > 1) service.late += pending.size() - 1;  // superseded forces are dropped
-        last_bodies.bodies = newest->second.first.bodies;
+        ForceSet& merged = newest->second.first;
+        for (auto it = pending.begin(); it != newest; ++it)
+          merged.loads.insert(merged.loads.begin(), it->second.first.loads.begin(), it->second.first.loads.end());
+        last_bodies.bodies = merged.bodies;
         last_frame = newest->first;
-        const SceneSnapshot& s = stage->step(&newest->second.first, newest->first);
+        const SceneSnapshot& s = stage->step(&merged, newest->first);
         publish(s, newest->second.second);
         service.processed(newest->first, newest->second.second.source_time_ns());
         pending.clear();

@@ -88,7 +88,10 @@ int main(int argc, char** argv) {
   std::map<std::uint64_t, msg::HandTarget> targets;
   std::map<std::uint64_t, SceneSnapshot> scenes;
   std::map<std::uint64_t, HandResult> states;
-  HandResult resolved;  // the last adopted HandState
+  HandResult resolved;      // the last adopted HandState
+  HandResult latest_state;  // live: the newest HandState received
+  bool latest_new = false;
+  std::uint64_t run = 0;    // live: the ingest run of the targets
   bool have_resolved = false;
   std::uint64_t adopted_frame = 0;
   bool have_scene = false;
@@ -99,6 +102,11 @@ int main(int argc, char** argv) {
   auto drain = [&] {
     while (targets_in.take(t)) {
       if (t.hand() != index) continue;
+      if (t.cluster() != cluster_name) { service.reject("hand_target: cluster name does not match the lab (another lab on this domain?)"); continue; }
+      if (!service.lockstep() && t.stamp().run() != run) {  // a new ingest run: frame numbers start again
+        run = t.stamp().run();
+        targets.clear();
+      }
       ++service.samples_in;
       if (!targets.empty() && t.stamp().frame() <= targets.rbegin()->first && !service.lockstep()) ++service.late;
       targets[t.stamp().frame()] = t;
@@ -116,12 +124,15 @@ int main(int argc, char** argv) {
       if (hs.hand() != index) continue;
       HandResult r;
       if (!svc::fromWire(hs, n, &r, &why)) { service.reject("hand_state: " + why); continue; }
-      states[r.frame] = std::move(r);
+      if (service.lockstep()) states[r.frame] = std::move(r);
+      else {  // live: the newest by arrival (a restarted resolver or ingest numbers frames anew)
+        latest_state = std::move(r);
+        latest_new = true;
+      }
     }
     // Bounded memory: live keeps only the newest; lock-step drops what is behind.
     if (!service.lockstep()) {
       while (targets.size() > 1) targets.erase(targets.begin());
-      while (states.size() > 1) states.erase(states.begin());
     }
   };
 
@@ -163,10 +174,11 @@ int main(int argc, char** argv) {
       }
       next = targets.rbegin()->first;
       // Start from a resolved state: the newest HandState, else the last one adopted.
-      if (!states.empty() && states.rbegin()->second.frame != adopted_frame) {
-        resolved = states.rbegin()->second;
+      if (latest_new) {
+        resolved = latest_state;
         have_resolved = true;
         adopted_frame = resolved.frame;
+        latest_new = false;
       }
       if (have_resolved) {
         solver->resume(resolved);  // a restarted solver goes on from the hand's last resolved pose
