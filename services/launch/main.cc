@@ -326,9 +326,13 @@ int main(int argc, char** argv) {
   std::string failure;
 
   Clock::time_point t_first_state{}, t_last_state{};
+  bool run_over = false;  // the ingest is done: held hands re-published after the run are not counted
   auto measure = [&](const msg::HandState& h, const SceneSnapshot* snap, double lat_us) {
-    if (states == 0) t_first_state = Clock::now();
-    t_last_state = Clock::now();
+    if (h.held() && run_over) return;
+    if (!h.held()) {
+      if (t_first_state == Clock::time_point{}) t_first_state = Clock::now();
+      t_last_state = Clock::now();
+    }
     ++states;
     if (snap)
       for (const ObjectMotion& o : snap->objects) world.setObjectPose(o.index, o.X);
@@ -519,6 +523,7 @@ int main(int argc, char** argv) {
       std::printf("launch: fault drill: SIGKILL %s at %.2f s\n", kill_service.c_str(), killed_s);
     }
     if (ingest_done) {
+      run_over = true;
       // Let the last states arrive (lock-step: until every frame is in, bounded).
       const Clock::time_point until = Clock::now() + std::chrono::seconds(lockstep ? 5 : 1);
       while (Clock::now() < until && (!lockstep || next_frame <= static_cast<std::uint64_t>(n_frames))) {
