@@ -477,9 +477,9 @@ int main(int argc, char** argv) {
   };
 
   // Run until the ingest is done (or a failure, or a stop signal).
-  Clock::time_point last_print = Clock::now(), restart_due{};
-  bool restart_pending = false, ingest_done = false;
-  std::string restart_name;
+  Clock::time_point last_print = Clock::now();
+  bool ingest_done = false;
+  std::map<std::string, Clock::time_point> restarts;  // service -> when to restart it
   while (!stopRequested()) {
     dp->waitForData(Clock::now() + std::chrono::milliseconds(20));
     drain();
@@ -500,9 +500,7 @@ int main(int argc, char** argv) {
         std::printf("launch: %s ended (%s); restarting in %.1f s\n", c.name.c_str(),
                     c.exited ? ("exit " + std::to_string(c.exit_code)).c_str() : ("signal " + std::to_string(c.term_signal)).c_str(),
                     restart_delay);
-        restart_pending = true;
-        restart_name = c.name;
-        restart_due = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(restart_delay));
+        restarts[c.name] = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(restart_delay));
       } else if (failure.empty()) {
         failure = c.name + " ended unexpectedly (" + (c.exited ? "exit code " + std::to_string(c.exit_code) : "signal " + std::to_string(c.term_signal)) + ")";
         for (const ChildSpec& s : specs)
@@ -510,11 +508,15 @@ int main(int argc, char** argv) {
       }
     }
     if (!failure.empty()) break;
-    if (restart_pending && Clock::now() >= restart_due) {
-      sup.restart(restart_name);
-      restart_pending = false;
+    for (auto it = restarts.begin(); it != restarts.end();) {
+      if (Clock::now() < it->second) {
+        ++it;
+        continue;
+      }
+      sup.restart(it->first);
       restarted_s = secondsSince(t_start);
-      std::printf("launch: %s restarted at %.2f s\n", restart_name.c_str(), restarted_s);
+      std::printf("launch: %s restarted at %.2f s\n", it->first.c_str(), restarted_s);
+      it = restarts.erase(it);
     }
     if (kill_at >= 0 && !killed && secondsSince(t_start) >= kill_at && states > 0) {
       sup.signal(kill_service, SIGKILL);
