@@ -224,13 +224,13 @@ TEST_F(SupervisorTest, KillAndRestart) {
 TEST_F(SupervisorTest, ChildIgnoringSigtermIsKilledAfterGrace) {
   // `exec` so the TERM-ignoring sleep is the child itself (dash would otherwise fork it as a
   // grandchild, which stop() does not reach: children stay in the launcher's process group).
-  const std::string log = path("stubborn.log");
+  const std::string log = path("ignores_term.log");
   Supervisor s;
-  s.start({"stubborn", {"/bin/sh", "-c", "trap '' TERM; echo ready; exec sleep 30"}, {}, log});
-  const pid_t pid = track(s, "stubborn");
+  s.start({"ignores_term", {"/bin/sh", "-c", "trap '' TERM; echo ready; exec sleep 30"}, {}, log});
+  const pid_t pid = track(s, "ignores_term");
   ASSERT_TRUE(logShows(log, "ready"));  // the trap is in place
   s.stop(milliseconds(300));
-  const ChildStatus* st = s.find("stubborn");
+  const ChildStatus* st = s.find("ignores_term");
   EXPECT_FALSE(st->running);
   EXPECT_EQ(st->term_signal, SIGKILL);
   EXPECT_TRUE(pidGone(pid));
