@@ -1,6 +1,7 @@
 #include "common/lab_config.h"
 
 #include <google/protobuf/io/tokenizer.h>
+#include <arpa/inet.h>
 #include <google/protobuf/text_format.h>
 #include <unistd.h>
 
@@ -77,6 +78,18 @@ bool validClusterName(const std::string& s) {
   return true;
 }
 
+bool validHostName(const std::string& s) {
+  if (s.empty() || s.size() > 63) return false;
+  for (char c : s)
+    if (!((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '-')) return false;
+  return true;
+}
+
+bool validIpv4(const std::string& s) {
+  in_addr a{};
+  return inet_pton(AF_INET, s.c_str(), &a) == 1;
+}
+
 /// Builds "SOURCE:LINE: PATH: reason" errors for one message of the file.
 class Where {
  public:
@@ -145,6 +158,33 @@ const LabService* LabConfig::service(const std::string& service_name) const {
     if (s.name == service_name) return &s;
   return nullptr;
 }
+
+const LabHost* LabConfig::host(const std::string& host_name) const {
+  for (const LabHost& h : hosts)
+    if (h.name == host_name) return &h;
+  return nullptr;
+}
+
+void selectHost(LabConfig& lab, const std::string& name) {
+  std::string known;
+  if (!lab.hosts.empty()) {
+    if (const LabHost* h = lab.host(name)) {
+      if (!h->profiles.empty()) lab.profiles = h->profiles;
+      return;
+    }
+    for (const LabHost& h : lab.hosts) known += (known.empty() ? "" : ", ") + h.name;
+  } else {
+    std::map<std::string, int> seen;
+    for (const LabService& s : lab.services) {
+      if (s.host == name && !name.empty()) return;
+      if (!s.host.empty() && seen.emplace(s.host, 0).second) known += (known.empty() ? "" : ", ") + s.host;
+    }
+  }
+  throw LabError(lab.file + ": --host " + inQuotes(name) + ": no such host in the lab (hosts: " +
+                 (known.empty() ? "none named" : known) + ")");
+}
+
+bool runsHere(const LabService& s, const std::string& host) { return host.empty() ? s.local : s.host == host; }
 
 LabConfig parseLab(const std::string& text, const std::string& source, const std::string& base_dir) {
   pb::Lab msg;
@@ -217,6 +257,42 @@ LabConfig parseLab(const std::string& text, const std::string& source, const std
     lab.clusters.push_back(std::move(c));
   }
 
+  // Hosts.
+  const FieldDescriptor* f_hosts = msg.GetDescriptor()->FindFieldByName("hosts");
+  std::map<std::string, int> host_index, address_index;
+  for (int i = 0; i < msg.hosts_size(); ++i) {
+    const pb::Host& ph = msg.hosts(i);
+    const int line = lineOf(msg, &tree, "hosts", i, 1);
+    const Where where(source, ph, tree.GetTreeForNested(f_hosts, i), line, "hosts[" + std::to_string(i) + "]");
+    LabHost h;
+    h.name = ph.name();
+    if (!validHostName(h.name))
+      where.fail("name", "a host name must be 1 to 63 characters of A-Z, a-z, 0-9, '.' and '-', got " + inQuotes(h.name));
+    const auto [it, fresh] = host_index.emplace(h.name, i);
+    if (!fresh) where.fail("name", "duplicate host name " + inQuotes(h.name) + " (also hosts[" + std::to_string(it->second) + "])");
+    h.address = ph.address();
+    if (!validIpv4(h.address))
+      where.fail("address", "host " + inQuotes(h.name) + " needs its IPv4 address on the lab network (a.b.c.d), got " +
+                                inQuotes(h.address));
+    const auto [ia, afresh] = address_index.emplace(h.address, i);
+    if (!afresh)
+      where.fail("address", "address " + h.address + " is also that of hosts[" + std::to_string(ia->second) + "]");
+    if (!ph.profiles().empty()) h.profiles = existingFile(ph.profiles(), base, where, "profiles", "Fast DDS profiles file");
+    lab.hosts.push_back(std::move(h));
+  }
+  std::string host_names;
+  for (const LabHost& h : lab.hosts) host_names += (host_names.empty() ? "" : ", ") + h.name;
+  if (!msg.discovery_server().empty()) {
+    if (!host_index.count(msg.discovery_server()))
+      top.fail("discovery_server", "no host named " + inQuotes(msg.discovery_server()) + " (hosts: " +
+                                       (host_names.empty() ? "none" : host_names) + ")");
+    lab.discovery_server = msg.discovery_server();
+  }
+  if (msg.discovery_port() != 0) {
+    if (msg.discovery_port() > 65535) top.fail("discovery_port", "must lie in 1..65535, got " + std::to_string(msg.discovery_port()));
+    lab.discovery_port = static_cast<int>(msg.discovery_port());
+  }
+
   // Services.
   const FieldDescriptor* f_services = msg.GetDescriptor()->FindFieldByName("services");
   std::map<std::string, int> service_index;  // name -> index in the file
@@ -258,6 +334,10 @@ LabConfig parseLab(const std::string& text, const std::string& source, const std
                              "); a lab runs exactly one");
     }
     s.host = ps.host();
+    if (!lab.hosts.empty() && !host_index.count(s.host))
+      where.fail("host", (s.host.empty() ? std::string("a lab with hosts needs the host of every service")
+                                         : "no host named " + inQuotes(s.host)) +
+                             " (hosts: " + host_names + ")");
     s.local = isLocalHost(s.host);
     s.args.assign(ps.args().begin(), ps.args().end());
     lab.services.push_back(std::move(s));

@@ -43,6 +43,13 @@ struct LabService {
                         ///< machine's gethostname() (compared case-insensitively)
 };
 
+/// A machine of the lab (Lab.hosts): optional; with hosts, every service's host names one.
+struct LabHost {
+  std::string name;      ///< [A-Za-z0-9.-]{1,63}, unique
+  std::string address;   ///< IPv4 dotted quad on the lab network, unique
+  std::string profiles;  ///< absolute path of this host's Fast DDS profiles, or "" = the lab's
+};
+
 struct LabConfig {
   std::string file;       ///< absolute path of the lab file (loadLab); parseLab: its source_name
   std::string name;       ///< the file's `name`, or the file's stem when empty
@@ -54,11 +61,16 @@ struct LabConfig {
   double stale_after_s = 0.25;  ///< live staleness threshold (file value, or 0.25 when 0/absent)
   std::vector<LabCluster> clusters;  ///< in file order (index = position), at least one
   std::vector<LabService> services;  ///< in file order
+  std::vector<LabHost> hosts;        ///< in file order; empty: services run where `host` says
+  std::string discovery_server;      ///< the host running `fastdds discovery`, "" = none
+  int discovery_port = 11811;        ///< its UDP port
 
   /// The cluster with that name, nullptr if none.
   const LabCluster* cluster(const std::string& name) const;
   /// The service with that name ("ingest", "solver/left", ...), nullptr if none.
   const LabService* service(const std::string& name) const;
+  /// The host with that name, nullptr if none.
+  const LabHost* host(const std::string& name) const;
 };
 
 /// Reads and validates a lab file (throws LabError).
@@ -76,5 +88,14 @@ std::string labServiceName(pb::Service::Kind kind, const std::string& cluster);
 /// True if `host` names this machine: "", "localhost", "127.0.0.1", "::1" or gethostname()
 /// (case-insensitive).
 bool isLocalHost(const std::string& host);
+
+/// `godhand-launch --host NAME`: checks that NAME is one of the lab's hosts (or, in a lab without
+/// `hosts`, the host of one of its services) and makes that host's profiles the lab's (when it
+/// has its own). Throws LabError "FILE: --host NAME: reason" naming the known hosts.
+void selectHost(LabConfig& lab, const std::string& name);
+
+/// Whether godhand-launch starts `s` here: with `host` given (--host), the services whose host
+/// is exactly that name; without, those whose host is this machine (LabService::local).
+bool runsHere(const LabService& s, const std::string& host);
 
 }  // namespace godhand
