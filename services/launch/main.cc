@@ -123,6 +123,8 @@ int main(int argc, char** argv) {
   bool lockstep = false, quiet = false, check = false, restart = false, no_physics = false;
   double speed = 1.0, restart_delay = 0.5, deadline = 0.0, start_timeout = 60.0;
   cli.option("--lab", &lab_file, "FILE", "lab configuration");
+  std::string host_name;  // --host: that lab host's services (and profiles) instead of this machine's
+  cli.option("--host", &host_name, "NAME", "start the services of the lab's host NAME, with its profiles (default: this machine's)");
   cli.option("--domain", &domain, "N", "DDS domain id 0..232; -1 = the lab's");
   cli.flag("--lockstep", &lockstep, "lock-step: deterministic, every stage waits for each frame's inputs");
   cli.option("--recording", &recording, "FILE", "tracker recording (default: the lab's)");
@@ -166,6 +168,7 @@ int main(int argc, char** argv) {
   LabConfig lab;
   try {
     lab = loadLab(lab_file);
+    if (!host_name.empty()) selectHost(lab, host_name);
   } catch (const std::exception& e) {
     cli.fail(e.what());
   }
@@ -200,7 +203,7 @@ int main(int argc, char** argv) {
   if (stat(log_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) cli.fail("--log-dir " + log_dir + ": cannot create");
   std::vector<ChildSpec> specs;
   for (const LabService& s : lab.services) {
-    if (!isLocalHost(s.host)) {
+    if (!runsHere(s, host_name)) {
       std::printf("launch: %s runs on %s (not started here)\n", s.name.c_str(), s.host.c_str());
       continue;
     }
