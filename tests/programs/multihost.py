@@ -1,0 +1,333 @@
+#!/usr/bin/env python3
+"""A lab over three hosts, for real: three network namespaces (each with its own /dev/shm, so
+no shared memory crosses hosts) joined by veth pairs on a bridge, private test addresses
+10.231.0.1-3, UDP only between them, discovery through a Fast DDS Discovery Server
+(`fastdds discovery`) on the scene host. Each host runs `godhand-launch --host NAME` with the
+same lab file and its own profiles (godhand-multihost-ds.xml with that host's address):
+
+    ingest   10.231.0.1   godhand-ingest (and the monitor that writes the report)
+    solvers  10.231.0.2   godhand-solver per cluster
+    scene    10.231.0.3   godhand-scene, godhand-resolver, fastdds discovery
+
+Checks: the lock-step result_hash of the run across the namespaces equals godhand-bench's
+in-process one (computed here, never hard-coded); a live run across the namespaces delivers
+every hand with its end-to-end latency measured; every host's lab interface carried traffic
+(UDP went between the namespaces) while each host's second interface ("uplink": default route
+and multicast route, i.e. where anything addressed outside the lab would go) sent 0 packets,
+with a positive control (a datagram addressed outside the lab moves that counter).
+
+Everything runs inside a fresh user + network namespace (unshare -rnm), itself without any
+route out: nothing can reach a real network. The test skips (77) where that cannot be made.
+
+usage: multihost.py BIN_DIR DEPLOY_DIR DOMAIN RECORDING [--security PKI_SCRIPT]
+       (re-executes itself inside the namespace as: multihost.py --inner ...)
+"""
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+HOSTS = [("ingest", "10.231.0.1"), ("solvers", "10.231.0.2"), ("scene", "10.231.0.3")]
+SERVER_HOST = "scene"
+failures = []
+
+
+def check(ok, what):
+    print(("ok:     " if ok else "FAILED: ") + what, flush=True)
+    if not ok:
+        failures.append(what)
+
+
+def run(cmd, timeout, **kw):
+    print("$ " + " ".join(cmd), flush=True)
+    return subprocess.run(cmd, timeout=timeout, capture_output=True, text=True, **kw)
+
+
+def sh(cmd):
+    r = subprocess.run(["sh", "-c", cmd], capture_output=True, text=True, timeout=30)
+    if r.returncode != 0:
+        raise RuntimeError(f"{cmd}: {r.stderr.strip()}")
+    return r.stdout
+
+
+def write_lab(tmp, deploy, profiles_of):
+    """The lab file: three hosts with their addresses and profiles, the discovery server."""
+    dep = os.path.abspath(deploy)
+    hosts = "".join(f'hosts {{ name: "{n}" address: "{a}" profiles: "{profiles_of[n]}" }}\n' for n, a in HOSTS)
+    text = f"""name: "multihost-test"
+domain_id: 0
+scene: "{dep}/scenes/default.pbtxt"
+recording: "{dep}/recordings/pinch.json"
+{hosts}discovery_server: "{SERVER_HOST}"
+clusters {{ name: "right" model: "{dep}/models/hand16_right.pbtxt" side: "right" }}
+clusters {{ name: "left" model: "{dep}/models/hand16_left.pbtxt" side: "left" }}
+services {{ kind: INGEST host: "ingest" }}
+services {{ kind: SCENE host: "scene" }}
+services {{ kind: RESOLVER host: "scene" }}
+services {{ kind: SOLVER cluster: "right" host: "solvers" }}
+services {{ kind: SOLVER cluster: "left" host: "solvers" }}
+"""
+    path = os.path.join(tmp, "lab.pbtxt")
+    open(path, "w").write(text)
+    return path
+
+
+def host_profiles(tmp, deploy, server_addr, extra=None):
+    """Per-host client profiles and the server profile from the shipped templates (placeholders
+    192.0.2.10 = this host, 192.0.2.1 = the server). `extra(name, xml)` may rewrite a host's file."""
+    client = open(os.path.join(deploy, "dds", "godhand-multihost-ds.xml")).read()
+    server = open(os.path.join(deploy, "dds", "godhand-discovery-server.xml")).read()
+    assert "192.0.2.10" in client and "192.0.2.1<" in client and "192.0.2.1<" in server
+    out = {}
+    for name, addr in HOSTS:
+        x = client.replace("192.0.2.10", addr).replace("192.0.2.1<", server_addr + "<")
+        if extra:
+            x = extra(name, x)
+        out[name] = os.path.join(tmp, f"profiles-{name}.xml")
+        open(out[name], "w").write(x)
+    srv = os.path.join(tmp, "profiles-server.xml")
+    open(srv, "w").write(server.replace("192.0.2.1<", server_addr + "<"))
+    return out, srv
+
+
+def stop(p, sig):
+    """Signals the process group of `p` (started with its own session), if it still runs."""
+    try:
+        os.killpg(p.pid, sig)
+    except ProcessLookupError:
+        pass
+
+
+class Lab:
+    """The namespaces: one holder process per host (own netns + mount ns with a private /dev/shm)."""
+
+    def __init__(self):
+        self.holders = {}
+        self.procs = []
+
+    def build(self):
+        for k in ("all", "default"):
+            sh(f"echo 1 > /proc/sys/net/ipv6/conf/{k}/disable_ipv6 || true")
+        sh("ip link set lo up && ip link add br0 type bridge && ip link set br0 up")
+        for i, (name, addr) in enumerate(HOSTS, 1):
+            p = subprocess.Popen(["unshare", "-mn", "sh", "-c",
+                                  "mount -t tmpfs -o size=256m tmpfs /dev/shm && "
+                                  "for k in all default; do echo 1 > /proc/sys/net/ipv6/conf/$k/disable_ipv6; done; "
+                                  "echo ready; exec sleep 100000"],
+                                 stdout=subprocess.PIPE, text=True)
+            self.holders[name] = p
+            if p.stdout.readline().strip() != "ready":
+                raise RuntimeError(f"namespace of {name} not ready")
+            pid = p.pid
+            # lab link: h<i> in the host, h<i>b on the bridge
+            sh(f"ip link add h{i} type veth peer name h{i}b && ip link set h{i} netns {pid} && "
+               f"ip link set h{i}b master br0 && ip link set h{i}b up")
+            # uplink: where anything addressed outside the lab (default route, multicast) goes
+            sh(f"ip link add u{i} type veth peer name u{i}b && ip link set u{i} netns {pid} && ip link set u{i}b up")
+            self.ns(name, f"ip link set lo up && ip addr add {addr}/24 dev h{i} && ip link set h{i} up && "
+                          f"ip addr add 10.231.9.{i}/24 dev u{i} && ip link set u{i} up multicast on && "
+                          f"ip route add default via 10.231.9.254 dev u{i} && ip route add 224.0.0.0/4 dev u{i}")
+
+    def enter(self, name):
+        return ["nsenter", "-t", str(self.holders[name].pid), "-n", "-m", "--preserve-credentials"]
+
+    def ns(self, name, cmd):
+        r = subprocess.run(self.enter(name) + ["sh", "-c", cmd], capture_output=True, text=True, timeout=30)
+        if r.returncode != 0:
+            raise RuntimeError(f"[{name}] {cmd}: {r.stderr.strip()}")
+        return r.stdout
+
+    def counters(self):
+        """(lab tx, uplink tx) packets per host."""
+        out = {}
+        for i, (name, _) in enumerate(HOSTS, 1):
+            dev = {}
+            for l in self.ns(name, "cat /proc/net/dev").splitlines()[2:]:
+                iface, rest = l.split(":", 1)
+                dev[iface.strip()] = int(rest.split()[9])
+            out[name] = (dev[f"h{i}"], dev[f"u{i}"])
+        return out
+
+    def start(self, name, cmd, log):
+        # own process group: a stop reaches the tool's children too (fastdds is a wrapper script)
+        p = subprocess.Popen(self.enter(name) + cmd, stdout=open(log, "w"), stderr=subprocess.STDOUT, text=True,
+                             start_new_session=True)
+        self.procs.append(p)
+        return p
+
+    def close(self):
+        for p in self.procs:
+            stop(p, signal.SIGTERM)
+        for p in self.procs:
+            try:
+                p.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                stop(p, signal.SIGKILL)
+                p.wait()
+        for p in self.holders.values():
+            p.kill()
+            p.wait()
+
+
+def lab_run(lab, tmp, bin_dir, lab_file, domain, server_xml, mode_args, tag, timeout=180):
+    """One run across the namespaces. Returns (ingest launch rc, its report, other hosts' rcs)."""
+    logs = os.path.join(tmp, f"logs-{tag}")
+    os.makedirs(logs, exist_ok=True)
+    tool = ["fast-discovery-server"] if shutil.which("fast-discovery-server") else ["fastdds", "discovery"]
+    server = lab.start(SERVER_HOST, tool + ["-x", f"godhand_discovery_server@{server_xml}"],
+                       os.path.join(logs, "discovery-server.out"))
+    time.sleep(0.5)
+    check(server.poll() is None, f"[{tag}] discovery server runs on {SERVER_HOST}")
+    base = [os.path.join(bin_dir, "godhand-launch"), "--lab", lab_file, "--domain", str(domain), "--quiet"] + mode_args
+    others = {}
+    for name in ("scene", "solvers"):
+        others[name] = lab.start(name, base + ["--host", name, "--log-dir", os.path.join(logs, name),
+                                               "--json", os.path.join(tmp, f"{tag}-{name}.json")],
+                                 os.path.join(logs, f"launch-{name}.out"))
+    report = os.path.join(tmp, f"{tag}-ingest.json")
+    ingest = lab.start("ingest", base + ["--host", "ingest", "--check", "--log-dir", os.path.join(logs, "ingest"), "--json", report],
+                       os.path.join(logs, "launch-ingest.out"))
+    try:
+        rc = ingest.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        ingest.kill()
+        rc = ingest.wait()
+    rcs = {}
+    for name, p in others.items():
+        if p.poll() is None:
+            p.send_signal(signal.SIGTERM)
+        try:
+            rcs[name] = p.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            stop(p, signal.SIGKILL)
+            rcs[name] = "killed"
+    stop(server, signal.SIGTERM)
+    try:
+        server.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        stop(server, signal.SIGKILL)
+        server.wait()
+    out = open(os.path.join(logs, "launch-ingest.out")).read()
+    print(f"--- [{tag}] ingest host launch (exit {rc}):\n" + out[-2500:])
+    if rc != 0 or any(v != 0 for v in rcs.values()):
+        for f in sorted(os.listdir(logs)):
+            p = os.path.join(logs, f)
+            if os.path.isfile(p):
+                print(f"--- {f}\n" + open(p).read()[-2000:])
+            elif os.path.isdir(p):
+                for g in sorted(os.listdir(p)):
+                    print(f"--- {f}/{g}\n" + open(os.path.join(p, g)).read()[-2000:])
+    j = json.load(open(report)) if os.path.exists(report) else {}
+    return rc, j, rcs
+
+
+def inner(bin_dir, deploy, domain, recording, tmp, profile_hook=None, tag_prefix=""):
+    lab = Lab()
+    try:
+        lab.build()
+        server_addr = dict(HOSTS)[SERVER_HOST]
+        profiles, server_xml = host_profiles(tmp, deploy, server_addr, profile_hook)
+        lab_file = write_lab(tmp, deploy, profiles)
+        # The lab works as a network: each host reaches the others over its lab link.
+        r = subprocess.run(lab.enter("ingest") + ["ping", "-c", "1", "-W", "2", "10.231.0.3"], capture_output=True, text=True) \
+            if shutil.which("ping") else None
+        if r is not None:
+            check(r.returncode == 0, "ingest host reaches the scene host over the bridge (ping)")
+        before = lab.counters()
+
+        # Lock-step: the hash across the namespaces equals the in-process one.
+        bench_json = os.path.join(tmp, "bench.json")
+        rb = run([os.path.join(bin_dir, "godhand-bench"), "--recording", recording, "--quiet", "--json", bench_json], 300)
+        check(rb.returncode == 0, "godhand-bench ran")
+        b = json.load(open(bench_json)) if rb.returncode == 0 else {}
+        t0 = time.time()
+        rc, j, rcs = lab_run(lab, tmp, bin_dir, lab_file, domain, server_xml, ["--lockstep", "--recording", recording],
+                             tag_prefix + "lockstep")
+        check(rc == 0, f"lock-step run across three namespaces: ingest host's launch --check exited 0 ({time.time() - t0:.1f} s)")
+        check(all(v == 0 for v in rcs.values()), f"the other hosts' launches stopped cleanly on SIGTERM ({rcs})")
+        check(b.get("frames", -1) == j.get("frames"), f"every frame came back ({j.get('frames')} of {b.get('frames')})")
+        check(b.get("result_hash") is not None and j.get("result_hash") == b.get("result_hash"),
+              f"result_hash across namespaces {j.get('result_hash')} == in-process {b.get('result_hash')}")
+        s = j.get("services", {})
+        check(all(k in s for k in ("scene", "resolver", "solver/right", "solver/left")),
+              f"the ingest host's monitor heard every remote service's heartbeat ({sorted(s)})")
+        lj = j.get("late_joiner", {})
+        check(lj.get("hand_states") == j.get("hands") and lj.get("scene_description") is True,
+              f"a late joiner on the ingest host got every HandState and the SceneDescription across hosts ({lj})")
+
+        # Live: latency across the namespaces.
+        rc, jl, rcs = lab_run(lab, tmp, bin_dir, lab_file, domain, server_xml, ["--recording", recording], tag_prefix + "live")
+        check(rc == 0, "live run across three namespaces: ingest host's launch --check exited 0")
+        check(all(v == 0 for v in rcs.values()), f"the other hosts' launches stopped cleanly on SIGTERM ({rcs})")
+        lat = jl.get("latency_us", {})
+        check(lat.get("samples", 0) > 0 and lat.get("median", 0) > 0,
+              f"latency across namespaces (tracker sample on 'ingest' -> HandState back on 'ingest' via solvers and resolver): "
+              f"median {lat.get('median', 0):.0f} us, p99 {lat.get('p99', 0):.0f} us over {lat.get('samples')} states")
+        print(f"FIGURE {tag_prefix}multihost_latency_us median {lat.get('median', 0):.0f} p99 {lat.get('p99', 0):.0f} "
+              f"samples {lat.get('samples')}", flush=True)
+
+        after = lab.counters()
+        for name, _ in HOSTS:
+            lab_tx = after[name][0] - before[name][0]
+            up_tx = after[name][1] - before[name][1]
+            check(lab_tx > 0, f"{name}: {lab_tx} packets sent on the lab link (UDP between the namespaces)")
+            check(up_tx == 0, f"{name}: {up_tx} packets sent on the uplink (nothing addressed outside the lab)")
+        # Positive control: a datagram addressed outside the lab does move an uplink counter.
+        # (multicast, as DDS's default discovery would send: no ARP, the packets leave at once)
+        lab.ns("ingest", "python3 -c \"import socket; s=socket.socket(socket.AF_INET, socket.SOCK_DGRAM); "
+                         "[s.sendto(b'x', ('239.255.0.1', 7400)) for _ in range(3)]\"")
+        ctl = lab.counters()["ingest"][1] - after["ingest"][1]
+        check(ctl >= 3, f"control: 3 datagrams addressed outside the lab moved the ingest uplink counter by {ctl}")
+        return j, jl
+    finally:
+        lab.close()
+
+
+def main():
+    if len(sys.argv) > 1 and sys.argv[1] == "--inner":
+        bin_dir, deploy, domain, recording, tmp = sys.argv[2:7]
+        inner(bin_dir, deploy, int(domain), recording, tmp)
+        print("PASSED" if not failures else f"{len(failures)} check(s) FAILED")
+        sys.exit(0 if not failures else 1)
+
+    bin_dir, deploy, domain, recording = [os.path.abspath(a) if i != 2 else a for i, a in enumerate(sys.argv[1:5])]
+    for tool in ("unshare", "nsenter", "ip", "fastdds"):
+        if not shutil.which(tool):
+            print(f"SKIP: needs {tool}")
+            sys.exit(77)
+    probe = subprocess.run(["unshare", "-rnm", "sh", "-c",
+                            "ip link add br0 type bridge && ip link add v0 type veth peer name v1 && "
+                            "unshare -mn sh -c 'mount -t tmpfs tmpfs /dev/shm' && ip link set v1 master br0"],
+                           capture_output=True, text=True)
+    if probe.returncode != 0:
+        print("SKIP: cannot create network namespaces joined by a bridge here: " + probe.stderr.strip())
+        sys.exit(77)
+    tmp = tempfile.mkdtemp(prefix="godhand-multihost-")
+    try:
+        r = subprocess.run(["unshare", "-rnm", sys.executable, os.path.abspath(__file__), "--inner", bin_dir, deploy, domain,
+                            recording, tmp], timeout=600)
+        rc = r.returncode
+    finally:
+        # nothing of this domain may survive (the namespaces die with their holder processes)
+        deadline = time.time() + 5
+        left = []
+        while time.time() < deadline:
+            out = subprocess.run(["pgrep", "-af", "godhand-"], capture_output=True, text=True).stdout
+            left = [l for l in out.splitlines() if f"--domain {domain} " in l + " " and "multihost.py" not in l]
+            if not left:
+                break
+            time.sleep(0.2)
+        if left:
+            print(f"FAILED: processes of domain {domain} left: {left}")
+            rc = 1
+        shutil.rmtree(tmp, ignore_errors=True)
+    sys.exit(rc)
+
+
+if __name__ == "__main__":
+    main()
