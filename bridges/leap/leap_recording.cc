@@ -76,6 +76,7 @@ struct HandCandidate {
   HandReject reason = HandReject::kMissingField;
   std::array<int, kFingerCount> finger_count{};
   VecStatus finger_status = VecStatus::kOk;
+  bool confidence_defaulted = false;
 };
 
 /// Validates one hand entry's own fields (not its fingers) and fills hand (palm frame in W).
@@ -101,10 +102,16 @@ bool readHand(const json& h, const Mat3& R_WT, const Vec3& p_WT, HandCandidate* 
     if (s == VecStatus::kNotFinite) return reject(HandReject::kNotFinite);
   }
   const auto conf = h.find("confidence");
-  if (conf == h.end()) return reject(HandReject::kMissingField);
-  if (conf->is_null()) return reject(HandReject::kNotFinite);
-  if (!conf->is_number()) return reject(HandReject::kMissingField);
-  c->hand.confidence = conf->get<double>();
+  if (conf == h.end()) {  // Leap SDK 2.0 recordings carry none: the format's default (tracked, 1)
+    c->hand.confidence = Recording::kDefaultConfidence;
+    c->confidence_defaulted = true;
+  } else if (conf->is_null()) {
+    return reject(HandReject::kNotFinite);
+  } else if (!conf->is_number()) {
+    return reject(HandReject::kMissingField);
+  } else {
+    c->hand.confidence = conf->get<double>();
+  }
   if (!std::isfinite(c->hand.confidence)) return reject(HandReject::kNotFinite);
   if (c->hand.confidence < 0.0 || c->hand.confidence > 1.0) return reject(HandReject::kBadConfidence);
 
@@ -253,6 +260,7 @@ std::string ReadStats::summary() const {
   os << "), hands " << hands_read << " (rejected: ";
   list(hands_rejected, HandReject::kCount);
   os << "), pointables ignored " << pointables_ignored;
+  if (hands_confidence_defaulted) os << ", hands without confidence (default 1) " << hands_confidence_defaulted;
   return os.str();
 }
 
@@ -372,6 +380,7 @@ Recording Recording::fromText(const std::string& text, const std::string& source
       }
       if (c.ok) {
         frame.hands.push_back(c.hand);
+        if (c.confidence_defaulted) ++st.hands_confidence_defaulted;
       } else {
         ++st.hands_rejected[static_cast<std::size_t>(c.reason)];
       }

@@ -15,7 +15,7 @@
 //    be non-decreasing (a frame older than the last accepted one is rejected, equal is kept);
 //  - hand: integer id, type "left"/"right", finite palmPosition / palmNormal / direction (JSON
 //    writes NaN as null: null counts as not finite), direction and normal of unit length within
-//    kUnitTolerance and orthogonal within kOrthoTolerance, confidence in [0, 1], unique id in its
+//    kUnitTolerance and orthogonal within kOrthoTolerance, confidence in [0, 1] (absent: kDefaultConfidence), unique id in its
 //    frame, exactly one pointable of each finger type 0..4 with finite mcp/pip/dip/tip positions.
 //    A bad hand is dropped from its frame; the rest of the frame is kept.
 //  - pointable: tools, unknown finger types and pointables of unknown hands are ignored (counted).
@@ -64,7 +64,7 @@ struct TrackerFrame {
 enum class FrameReject : int { kNotObject, kMissingTimestamp, kDecreasingTimestamp, kMissingHands, kCount };
 enum class HandReject : int {
   kNotObject,          ///< hand entry is not a JSON object
-  kMissingField,       ///< id, type, palmPosition, palmNormal, direction or confidence absent / wrong shape
+  kMissingField,       ///< id, type, palmPosition, palmNormal or direction absent / wrong shape; confidence not a number
   kBadType,            ///< type is not "left" / "right", or the id is not an integer
   kNotFinite,          ///< NaN (null) or infinite palm position / normal / direction / confidence
   kBadDirection,       ///< direction or normal not unit length, degenerate, or not orthogonal
@@ -86,6 +86,7 @@ struct ReadStats {
   std::array<std::size_t, static_cast<std::size_t>(FrameReject::kCount)> frames_rejected{};
   std::array<std::size_t, static_cast<std::size_t>(HandReject::kCount)> hands_rejected{};
   std::size_t pointables_ignored = 0;  ///< tools, unknown finger types, unknown hands
+  std::size_t hands_confidence_defaulted = 0;  ///< kept hands without "confidence" (Leap SDK 2.0 files)
   std::size_t frames_rejected_total() const;
   std::size_t hands_rejected_total() const;
   std::size_t frameRejects(FrameReject r) const { return frames_rejected[static_cast<std::size_t>(r)]; }
@@ -105,6 +106,9 @@ class Recording {
  public:
   static constexpr double kUnitTolerance = 1e-2;   ///< | |v| − 1 | for direction and palmNormal
   static constexpr double kOrthoTolerance = 2e-2;  ///< |direction · palmNormal| (about 1.1°)
+  /// A hand without "confidence" (Leap SDK 2.0 recordings have none): a hand in a frame is a
+  /// tracked hand, so it gets full confidence (counted in ReadStats::hands_confidence_defaulted).
+  static constexpr double kDefaultConfidence = 1.0;
 
   /// Reads a leapjs-playback JSON file. X_WT: tracker (device frame T, see above) to world,
   /// applied after the unit/axis conversion. Throws RecordingError ("FILE: reason") when the file

@@ -1,70 +1,398 @@
 #include "source/tracker_source.h"
 
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <sstream>
 #include <vector>
+
+#include "dtrack/dtrack.h"
+#include "source/recording.h"
 
 namespace godhand::bridges {
 
 namespace {
 
-bool endsWith(const std::string& s, const std::string& suffix) {
-  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+std::int64_t systemNowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-// Replays a Leap JSON recording frame by frame (pacing is the caller's business).
-class LeapReplay final : public TrackerSource {
- public:
-  LeapReplay(const std::string& path, std::int64_t frames) : path_(path) {
-    try {
-      rec_ = leap::Recording::load(path);
-    } catch (const std::exception& e) {
-      throw SourceError(e.what());
+std::string readFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SourceError(path + ": cannot open (" + std::strerror(errno) + ")");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  if (in.bad()) throw SourceError(path + ": read error");
+  return ss.str();
+}
+
+/// Drops / re-sides hands by the tracker-id map; returns how many were dropped.
+std::uint64_t applyHandSides(TrackerFrame* f, const SourceOptions& o) {
+  if (o.hand_sides.empty()) return 0;
+  std::uint64_t dropped = 0;
+  std::vector<TrackedHand> kept;
+  for (TrackedHand& h : f->hands) {
+    const auto it = std::find_if(o.hand_sides.begin(), o.hand_sides.end(), [&](const auto& p) { return p.first == h.id; });
+    if (it == o.hand_sides.end()) {
+      ++dropped;
+      continue;
     }
-    if (rec_.frames().empty()) throw SourceError(path + ": no usable frames");
-    rate_ = rec_.meanFrameRate();
-    if (!(rate_ > 1.0 && rate_ < 10000.0)) throw SourceError(path + ": implausible frame rate " + std::to_string(rate_));
-    end_ = rec_.frames().size();
-    if (frames > 0) end_ = std::min(end_, static_cast<size_t>(frames));
-    for (const TrackerFrame& f : rec_.frames())
+    if (h.right != it->second) {
+      // The tracker calls it the other side: its palm frame's x (thumb side) flips with the side.
+      ++dropped;
+      continue;
+    }
+    kept.push_back(h);
+  }
+  f->hands.swap(kept);
+  return dropped;
+}
+
+double meanRate(const std::vector<TrackerFrame>& frames) {
+  if (frames.size() < 2) return 0.0;
+  const double dt = static_cast<double>(frames.back().timestamp_us - frames.front().timestamp_us) * 1e-6;
+  return dt > 0.0 ? static_cast<double>(frames.size() - 1) / dt : 0.0;
+}
+
+/// A replay of frames decoded up front (every file format).
+class FrameReplay : public TrackerSource {
+ public:
+  FrameReplay(std::string what, std::string path, std::vector<TrackerFrame> frames, SourceStats base, std::int64_t limit)
+      : what_(std::move(what)), path_(std::move(path)), frames_(std::move(frames)), base_(std::move(base)) {
+    if (frames_.empty()) throw SourceError(path_ + ": no usable frames (" + base_.detail + ")");
+    rate_ = meanRate(frames_);
+    if (!(rate_ > 1.0 && rate_ < 10000.0)) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, ": implausible frame rate %.6g Hz over %zu frames (timestamps %lld..%lld us)", rate_,
+                    frames_.size(), static_cast<long long>(frames_.front().timestamp_us),
+                    static_cast<long long>(frames_.back().timestamp_us));
+      throw SourceError(path_ + buf);
+    }
+    end_ = frames_.size();
+    if (limit > 0) end_ = std::min(end_, static_cast<size_t>(limit));
+    for (const TrackerFrame& f : frames_)
       for (const TrackedHand& h : f.hands) (h.right ? right_ : left_) = true;
   }
   std::string describe() const override {
     char buf[96];
     std::snprintf(buf, sizeof buf, " (%zu frames, %.2f Hz)", end_, rate_);
-    return "leap replay " + path_ + buf;
+    return what_ + " " + path_ + buf;
   }
   double nominalRate() const override { return rate_; }
   bool hasSide(bool right) const override { return right ? right_ : left_; }
   bool next(TrackerFrame* frame) override {
     if (pos_ >= end_) return false;
-    *frame = rec_.frames()[pos_++];
+    *frame = frames_[pos_++];
     return true;
   }
   std::int64_t remaining() const override { return static_cast<std::int64_t>(end_ - pos_); }
   SourceStats stats() const override {
-    SourceStats s;
+    SourceStats s = base_;
     s.frames = pos_;
-    const leap::ReadStats& r = rec_.stats();
-    s.rejected = r.frames_rejected_total() + r.hands_rejected_total();
-    s.detail = r.summary();
     return s;
   }
+  const std::vector<TrackerFrame>& all() const { return frames_; }
 
  private:
-  std::string path_;
-  leap::Recording rec_;
+  std::string what_, path_;
+  std::vector<TrackerFrame> frames_;
+  SourceStats base_;
   double rate_ = 0.0;
   size_t pos_ = 0, end_ = 0;
   bool right_ = false, left_ = false;
 };
 
+dtrack::MapOptions mapOptions(const SourceOptions& o) {
+  dtrack::MapOptions m;
+  m.X_WT = o.X_WT;
+  if (o.units_to_m > 0.0) m.units_to_m = o.units_to_m;
+  m.y_up = o.y_up;
+  m.palm_offset_m = o.palm_offset_m;
+  return m;
+}
+dtrack::ParseLimits parseLimits(const SourceOptions& o) {
+  dtrack::ParseLimits l;
+  l.max_bytes = o.max_datagram_bytes;
+  return l;
+}
+
+void addDecoderStats(const dtrack::Decoder& d, std::uint64_t side_dropped, SourceStats* s) {
+  s->received = d.received();
+  s->rejected = d.rejectedTotal() + side_dropped;
+  s->detail = d.summary();
+  if (side_dropped) s->detail += "; hands not in the hand map " + std::to_string(side_dropped);
+  s->by_reason.clear();
+  for (int r = 0; r < static_cast<int>(dtrack::Reject::kCount); ++r)
+    if (d.rejected(static_cast<dtrack::Reject>(r)))
+      s->by_reason.emplace_back(dtrack::reasonName(static_cast<dtrack::Reject>(r)), d.rejected(static_cast<dtrack::Reject>(r)));
+  if (side_dropped) s->by_reason.emplace_back("hand not in the hand map", side_dropped);
+}
+
+std::unique_ptr<FrameReplay> leapReplay(const std::string& path, const SourceOptions& o) {
+  leap::Recording rec;
+  try {
+    rec = leap::Recording::load(path, o.X_WT);
+  } catch (const std::exception& e) {
+    throw SourceError(e.what());
+  }
+  std::vector<TrackerFrame> frames = rec.frames();
+  std::uint64_t dropped = 0;
+  for (TrackerFrame& f : frames) dropped += applyHandSides(&f, o);
+  SourceStats s;
+  const leap::ReadStats& r = rec.stats();
+  s.received = r.frames_in;
+  s.rejected = r.frames_rejected_total() + r.hands_rejected_total() + dropped;
+  s.detail = r.summary();
+  if (dropped) s.detail += "; hands not in the hand map " + std::to_string(dropped);
+  for (int i = 0; i < static_cast<int>(leap::FrameReject::kCount); ++i)
+    if (r.frameRejects(static_cast<leap::FrameReject>(i)))
+      s.by_reason.emplace_back(std::string("frame: ") + leap::reasonName(static_cast<leap::FrameReject>(i)),
+                               r.frameRejects(static_cast<leap::FrameReject>(i)));
+  for (int i = 0; i < static_cast<int>(leap::HandReject::kCount); ++i)
+    if (r.handRejects(static_cast<leap::HandReject>(i)))
+      s.by_reason.emplace_back(std::string("hand: ") + leap::reasonName(static_cast<leap::HandReject>(i)),
+                               r.handRejects(static_cast<leap::HandReject>(i)));
+  if (dropped) s.by_reason.emplace_back("hand not in the hand map", dropped);
+  return std::make_unique<FrameReplay>("leap replay", path, std::move(frames), std::move(s), o.frames);
+}
+
+/// DTrack datagrams (a .dtrack file, or the records of a raw recording with their arrival times).
+std::unique_ptr<FrameReplay> dtrackReplay(const std::string& path, const std::vector<RawRecord>& records, const SourceOptions& o,
+                                          const char* what) {
+  dtrack::Decoder dec(parseLimits(o), mapOptions(o));
+  std::vector<TrackerFrame> frames;
+  std::uint64_t dropped = 0;
+  TrackerFrame f;
+  for (const RawRecord& r : records)
+    if (dec.feed(r.bytes, r.arrival_ns / 1000, &f)) {
+      dropped += applyHandSides(&f, o);
+      frames.push_back(f);
+    }
+  SourceStats s;
+  addDecoderStats(dec, dropped, &s);
+  if (frames.empty() && records.size() > 0 && dec.rejectedTotal() > 0)
+    throw SourceError(path + ": no usable frames (" + s.detail + "; last: " + dec.lastDetail() + ")");
+  return std::make_unique<FrameReplay>(what, path, std::move(frames), std::move(s), o.frames);
+}
+
+std::vector<RawRecord> dtrackFileRecords(const std::string& path) {
+  std::vector<RawRecord> out;
+  for (std::string& d : dtrack::splitDatagrams(readFile(path))) out.push_back({0, std::move(d)});
+  if (out.empty()) throw SourceError(path + ": no datagrams");
+  return out;
+}
+
+std::unique_ptr<FrameReplay> openReplay(const std::string& path, const std::string& format, const SourceOptions& o) {
+  if (format == "leap") return leapReplay(path, o);
+  if (format == "dtrack") return dtrackReplay(path, dtrackFileRecords(path), o, "dtrack replay");
+  if (format == "raw") {
+    std::string kind;
+    const std::vector<RawRecord> recs = readRaw(path, &kind);
+    if (kind != "dtrack") throw SourceError(path + ": raw recording of unsupported kind '" + kind + "'");
+    return dtrackReplay(path, recs, o, "raw dtrack replay");
+  }
+  throw SourceError(path + ": unknown recording format (expected Leap JSON, DTrack datagrams or a godhand raw recording)");
+}
+
+/// Live ART DTrack over UDP: a non-blocking socket bound to host:port (at start()).
+class DtrackUdp final : public TrackerSource {
+ public:
+  DtrackUdp(std::string host, int port, const SourceOptions& o)
+      : host_(std::move(host)), port_(port), opt_(o), dec_(parseLimits(o), mapOptions(o)), buf_(65536 + 1) {}
+  ~DtrackUdp() override {
+    if (fd_ >= 0) ::close(fd_);
+  }
+  std::string describe() const override {
+    return "dtrack udp " + host_ + ":" + std::to_string(port_) + (fd_ >= 0 ? " (bound)" : "");
+  }
+  double nominalRate() const override { return opt_.live_rate_hz; }
+  bool hasSide(bool) const override { return true; }
+  bool live() const override { return true; }
+  std::int64_t remaining() const override { return -1; }
+  void start() override {
+    if (fd_ >= 0) return;
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_port = htons(static_cast<std::uint16_t>(port_));
+    if (::inet_pton(AF_INET, host_.c_str(), &a.sin_addr) != 1) throw SourceError("dtrack://" + host_ + ": not an IPv4 address");
+    const int fd = ::socket(AF_INET, SOCK_DGRAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+    if (fd < 0) throw SourceError(std::string("dtrack: socket: ") + std::strerror(errno));
+    const int rcvbuf = 1 << 20;
+    (void)::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &rcvbuf, sizeof rcvbuf);
+    if (::bind(fd, reinterpret_cast<const sockaddr*>(&a), sizeof a) != 0) {
+      const std::string why = std::strerror(errno);
+      ::close(fd);
+      throw SourceError("dtrack: cannot bind " + host_ + ":" + std::to_string(port_) + ": " + why);
+    }
+    fd_ = fd;
+  }
+  bool waitReadable(int timeout_ms) override {
+    if (fd_ < 0) start();
+    pollfd p{fd_, POLLIN, 0};
+    return ::poll(&p, 1, std::max(0, timeout_ms)) > 0;
+  }
+  bool next(TrackerFrame* frame) override {
+    if (fd_ < 0) start();
+    for (;;) {
+      const ssize_t n = ::recv(fd_, buf_.data(), buf_.size(), MSG_TRUNC);
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        return false;  // EAGAIN: nothing ready (other errors: counted as nothing, retried later)
+      }
+      const std::int64_t arrival = systemNowNs();
+      const size_t len = std::min(static_cast<size_t>(n), buf_.size());
+      std::string bytes(buf_.data(), len);
+      if (static_cast<size_t>(n) > buf_.size()) bytes.append(static_cast<size_t>(n) - len, '\0');  // keeps the size: oversized
+      if (tap_) tap_(bytes, arrival);
+      if (dec_.feed(bytes, arrival / 1000, frame)) {
+        side_dropped_ += applyHandSides(frame, opt_);
+        last_arrival_ = arrival;
+        return true;
+      }
+    }
+  }
+  SourceStats stats() const override {
+    SourceStats s;
+    s.frames = dec_.accepted();
+    addDecoderStats(dec_, side_dropped_, &s);
+    return s;
+  }
+  std::int64_t lastArrivalNs() const override { return last_arrival_; }
+  void setTap(std::function<void(const std::string&, std::int64_t)> tap) override { tap_ = std::move(tap); }
+
+ private:
+  std::string host_;
+  int port_;
+  SourceOptions opt_;
+  dtrack::Decoder dec_;
+  std::vector<char> buf_;
+  int fd_ = -1;
+  std::uint64_t side_dropped_ = 0;
+  std::int64_t last_arrival_ = 0;
+  std::function<void(const std::string&, std::int64_t)> tap_;
+};
+
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> out;
+  std::string cur;
+  for (char c : s) {
+    if (c == sep) {
+      out.push_back(cur);
+      cur.clear();
+    } else {
+      cur += c;
+    }
+  }
+  out.push_back(cur);
+  return out;
+}
+
+double number(const std::string& s, const std::string& what) {
+  char* end = nullptr;
+  const double v = std::strtod(s.c_str(), &end);
+  if (s.empty() || end != s.c_str() + s.size() || !std::isfinite(v)) throw SourceError(what + ": '" + s + "' is not a finite number");
+  return v;
+}
+
 }  // namespace
 
+std::string detectFormat(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw SourceError(path + ": cannot open (" + std::strerror(errno) + ")");
+  char buf[64] = {};
+  in.read(buf, sizeof buf);
+  const std::string head(buf, static_cast<size_t>(in.gcount()));
+  size_t i = 0;
+  while (i < head.size() && std::isspace(static_cast<unsigned char>(head[i]))) ++i;
+  if (i < head.size() && head[i] == '{') return "leap";
+  if (head.compare(0, 11, "godhand-raw") == 0) return "raw";
+  if (head.compare(0, 3, "fr ") == 0) return "dtrack";
+  return "";
+}
+
+std::vector<std::pair<int, bool>> parseHandSides(const std::string& text) {
+  std::vector<std::pair<int, bool>> out;
+  if (text.empty()) return out;
+  for (const std::string& item : split(text, ',')) {
+    const auto parts = split(item, ':');
+    if (parts.size() != 2 || (parts[1] != "left" && parts[1] != "right"))
+      throw SourceError("hand map '" + text + "': expected ID:left|right[,ID:left|right]");
+    const double id = number(parts[0], "hand map id");
+    if (id < 0 || id > 1000 || std::floor(id) != id) throw SourceError("hand map '" + text + "': id must be an integer in 0..1000");
+    for (const auto& p : out)
+      if (p.first == static_cast<int>(id)) throw SourceError("hand map '" + text + "': id " + parts[0] + " given twice");
+    out.emplace_back(static_cast<int>(id), parts[1] == "right");
+  }
+  return out;
+}
+
+Pose parsePose(const std::string& text) {
+  const auto parts = split(text, ',');
+  std::vector<double> v;
+  for (const std::string& p : parts) v.push_back(number(p, "pose '" + text + "'"));
+  Pose X;
+  if (v.size() != 3 && v.size() != 6 && v.size() != 7)
+    throw SourceError("pose '" + text + "': expected x,y,z[,rx,ry,rz degrees | ,qw,qx,qy,qz]");
+  for (double c : {v[0], v[1], v[2]})
+    if (std::abs(c) > 1e4) throw SourceError("pose '" + text + "': translation beyond 10 km");
+  X.p = Vec3(v[0], v[1], v[2]);
+  if (v.size() == 6) {
+    constexpr double kDeg = 3.14159265358979323846 / 180.0;
+    X.q = Quat(Eigen::AngleAxisd(v[5] * kDeg, Vec3::UnitZ()) * Eigen::AngleAxisd(v[4] * kDeg, Vec3::UnitY()) *
+               Eigen::AngleAxisd(v[3] * kDeg, Vec3::UnitX()));
+  } else if (v.size() == 7) {
+    Quat q(v[3], v[4], v[5], v[6]);
+    if (!(q.norm() > 1e-9)) throw SourceError("pose '" + text + "': zero quaternion");
+    X.q = q.normalized();
+  }
+  return X;
+}
+
 std::unique_ptr<TrackerSource> openSource(const std::string& spec, std::int64_t frames) {
-  if (spec.rfind("leap:", 0) == 0) return std::make_unique<LeapReplay>(spec.substr(5), frames);
-  if (endsWith(spec, ".json")) return std::make_unique<LeapReplay>(spec, frames);
-  throw SourceError("unknown tracker source '" + spec + "' (expected leap:FILE or FILE.json)");
+  SourceOptions o;
+  o.frames = frames;
+  return openSource(spec, o);
+}
+
+std::unique_ptr<TrackerSource> openSource(const std::string& spec, const SourceOptions& o) {
+  if (spec.rfind("dtrack://", 0) == 0) {
+    std::string rest = spec.substr(9);
+    while (!rest.empty() && rest.back() == '/') rest.pop_back();
+    std::string host = rest;
+    int port = 5000;
+    const auto colon = rest.rfind(':');
+    if (colon != std::string::npos) {
+      host = rest.substr(0, colon);
+      const std::string ps = rest.substr(colon + 1);
+      char* end = nullptr;
+      const long p = std::strtol(ps.c_str(), &end, 10);
+      if (ps.empty() || *end != '\0' || p < 1 || p > 65535) throw SourceError(spec + ": port must be 1..65535");
+      port = static_cast<int>(p);
+    }
+    if (host.empty()) host = "127.0.0.1";
+    in_addr tmp{};
+    if (::inet_pton(AF_INET, host.c_str(), &tmp) != 1) throw SourceError(spec + ": host must be an IPv4 address (e.g. 127.0.0.1)");
+    return std::make_unique<DtrackUdp>(host, port, o);
+  }
+  if (spec.find("://") != std::string::npos) throw SourceError("unknown live source '" + spec + "' (expected dtrack://HOST:PORT)");
+  if (spec.rfind("leap:", 0) == 0) return openReplay(spec.substr(5), "leap", o);
+  if (spec.rfind("dtrack:", 0) == 0) return openReplay(spec.substr(7), "dtrack", o);
+  if (spec.rfind("raw:", 0) == 0) return openReplay(spec.substr(4), "raw", o);
+  const std::string format = detectFormat(spec);
+  if (format.empty())
+    throw SourceError(spec + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...) or a godhand raw recording)");
+  return openReplay(spec, format, o);
 }
 
 const TrackedHand* handOfSide(const TrackerFrame& frame, bool right) {
@@ -72,6 +400,90 @@ const TrackedHand* handOfSide(const TrackerFrame& frame, bool right) {
   for (const TrackedHand& h : frame.hands)
     if (h.right == right && (!best || h.confidence > best->confidence)) best = &h;
   return best;
+}
+
+// ---- recording.h ----
+
+LoadedRecording loadRecording(const std::string& path, const Pose& X_WT) {
+  SourceOptions o;
+  o.X_WT = X_WT;
+  return loadRecording(path, o);
+}
+
+LoadedRecording loadRecording(const std::string& path, const SourceOptions& options) {
+  if (path.find("://") != std::string::npos) throw SourceError(path + ": a live source, not a recording file");
+  const std::string format = detectFormat(path);
+  if (format.empty())
+    throw SourceError(path + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...) or a godhand raw recording)");
+  SourceOptions o = options;
+  o.frames = 0;
+  const std::unique_ptr<FrameReplay> r = openReplay(path, format, o);
+  LoadedRecording out;
+  out.frames = r->all();
+  out.format = format;
+  out.mean_rate_hz = r->nominalRate();
+  out.rejections = r->stats().detail;
+  std::size_t n = 0;
+  for (const TrackerFrame& f : out.frames)
+    for (const TrackedHand& h : f.hands) {
+      out.mean_palm_W += h.X_W_palm.p;
+      ++n;
+      (h.right ? out.has_right : out.has_left) = true;
+    }
+  if (n == 0) throw SourceError(path + ": no tracked hands (" + out.rejections + ")");
+  out.mean_palm_W /= static_cast<double>(n);
+  return out;
+}
+
+RawWriter::RawWriter(const std::string& path, const std::string& kind) {
+  f_ = std::fopen(path.c_str(), "wb");
+  if (!f_) throw SourceError(path + ": cannot write (" + std::strerror(errno) + ")");
+  ok_ = std::fprintf(f_, "godhand-raw 1 %s\n", kind.c_str()) > 0;
+}
+
+RawWriter::~RawWriter() {
+  if (f_) std::fclose(f_);
+}
+
+void RawWriter::write(const std::string& bytes, std::int64_t arrival_ns) {
+  if (!f_) return;
+  ok_ = ok_ && std::fprintf(f_, "@ %lld %zu\n", static_cast<long long>(arrival_ns), bytes.size()) > 0;
+  ok_ = ok_ && std::fwrite(bytes.data(), 1, bytes.size(), f_) == bytes.size();
+  ok_ = ok_ && std::fputc('\n', f_) != EOF;
+  ++records_;
+}
+
+std::vector<RawRecord> readRaw(const std::string& path, std::string* kind) {
+  const std::string data = readFile(path);
+  size_t pos = data.find('\n');
+  if (pos == std::string::npos) throw SourceError(path + ": raw recording without a header line");
+  {
+    std::istringstream h(data.substr(0, pos));
+    std::string magic;
+    int version = 0;
+    h >> magic >> version >> *kind;
+    if (magic != "godhand-raw" || version != 1 || kind->empty()) throw SourceError(path + ": bad raw recording header");
+  }
+  ++pos;
+  std::vector<RawRecord> out;
+  while (pos < data.size()) {
+    const size_t e = data.find('\n', pos);
+    if (e == std::string::npos) throw SourceError(path + ": record " + std::to_string(out.size() + 1) + " header cut");
+    const std::string line = data.substr(pos, e - pos);
+    long long t = 0;
+    unsigned long long n = 0;
+    char at = 0;
+    int used = 0;
+    if (std::sscanf(line.c_str(), "%c %lld %llu%n", &at, &t, &n, &used) != 3 || at != '@' || static_cast<size_t>(used) != line.size() ||
+        n > (1u << 20))
+      throw SourceError(path + ": record " + std::to_string(out.size() + 1) + ": bad record header");
+    pos = e + 1;
+    if (data.size() - pos < n + 1 || data[pos + n] != '\n') throw SourceError(path + ": record " + std::to_string(out.size() + 1) + " cut");
+    out.push_back({t, data.substr(pos, n)});
+    pos += n + 1;
+  }
+  if (out.empty()) throw SourceError(path + ": raw recording holds no records");
+  return out;
 }
 
 }  // namespace godhand::bridges

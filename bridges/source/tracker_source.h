@@ -11,7 +11,10 @@
 #include <cstdint>
 #include <memory>
 #include <stdexcept>
+#include <functional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "leap/leap_recording.h"
 
@@ -28,7 +31,33 @@ struct SourceStats {
   std::uint64_t frames = 0;    ///< frames delivered
   std::uint64_t rejected = 0;  ///< frames and hands dropped as bad input
   std::string detail;          ///< one line: the rejections by reason
+  std::uint64_t received = 0;  ///< records / datagrams that came in (live and replayed DTrack)
+  std::vector<std::pair<std::string, std::uint64_t>> by_reason;  ///< rejections by reason (nonzero)
 };
+
+/// How a source is opened: calibration and source-specific settings. The defaults reproduce the
+/// behaviour of openSource(spec, frames).
+struct SourceOptions {
+  std::int64_t frames = 0;  ///< > 0: a replay stops after its first frames
+  /// Tracker frame T (after units and up-axis conversion) to world. Leap's T is fixed by the
+  /// reader (mm, +Y up -> m, +Z up); DTrack's is the room frame.
+  Pose X_WT;
+  double units_to_m = 0.0;  ///< DTrack room units; 0: the format's (mm)
+  bool y_up = false;        ///< DTrack room calibrated Y up ("powerwall")
+  Vec3 palm_offset_m = Vec3::Zero();  ///< DTrack: palm centre from the hand target (fingers, thumb, palm)
+  /// Tracker hand id -> side ("0:left,1:right"); empty: the tracker's own side. A hand whose id
+  /// is not listed is dropped (counted) when the map is not empty.
+  std::vector<std::pair<int, bool>> hand_sides;
+  double live_rate_hz = 60.0;  ///< nominal rate reported by a live source
+  std::size_t max_datagram_bytes = 32768;
+};
+
+/// Parses "ID:left|right[,ID:left|right...]" for SourceOptions::hand_sides; throws SourceError.
+std::vector<std::pair<int, bool>> parseHandSides(const std::string& text);
+/// Parses a pose: "x,y,z" (metres), "x,y,z,rx,ry,rz" (plus rotations in degrees about the fixed
+/// X, then Y, then Z axis: R = Rz Ry Rx) or "x,y,z,qw,qx,qy,qz" (a quaternion, normalised; not
+/// zero). Throws SourceError with one line.
+Pose parsePose(const std::string& text);
 
 class TrackerSource {
  public:
@@ -44,12 +73,33 @@ class TrackerSource {
   /// Frames left, or −1 for a live source.
   virtual std::int64_t remaining() const = 0;
   virtual SourceStats stats() const = 0;
+  /// Live sources (a socket): next() returning false means "nothing yet", not the end.
+  virtual bool live() const { return false; }
+  /// Live: acquires the resource (binds the socket); throws SourceError. Replays: nothing.
+  /// next() calls it when it was not called; openSource does not, so that a process that only
+  /// wants nominalRate() never binds the port.
+  virtual void start() {}
+  /// Live: waits up to timeout_ms for input (poll); returns true when some may be ready.
+  virtual bool waitReadable(int timeout_ms) { (void)timeout_ms; return true; }
+  /// Arrival time (steady clock, ns) of the frame last returned by next(); 0 when unknown.
+  virtual std::int64_t lastArrivalNs() const { return 0; }
+  /// Raw input recording (see recording.h): called with every datagram / record that comes in.
+  virtual void setTap(std::function<void(const std::string& bytes, std::int64_t arrival_ns)> tap) { (void)tap; }
 };
 
-/// Opens a source. spec: "leap:FILE" or a file ending in ".json" (a Leap Motion JSON recording,
-/// formats of bridges/leap/leap_recording.h). frames > 0 limits a replay to its first frames.
+/// Opens a source. spec:
+///  - a recording file of any supported format, detected by content (not by its name): Leap
+///    Motion JSON (bridges/leap/leap_recording.h), DTrack datagrams (.dtrack, bridges/dtrack),
+///    a godhand raw recording (`godhand-ingest --record`, recording.h);
+///  - "leap:FILE" / "dtrack:FILE" force a reader;
+///  - "dtrack://HOST:PORT" a live DTrack UDP stream received on HOST:PORT (HOST an IPv4 address,
+///    e.g. 127.0.0.1; default port 5000 when ":PORT" is omitted).
 /// Throws SourceError with a one-line reason (unknown kind, unreadable or empty recording).
 std::unique_ptr<TrackerSource> openSource(const std::string& spec, std::int64_t frames = 0);
+std::unique_ptr<TrackerSource> openSource(const std::string& spec, const SourceOptions& options);
+
+/// The format of a recording file by its first bytes: "leap", "dtrack", "raw", or "" (unknown).
+std::string detectFormat(const std::string& path);
 
 /// The best tracked hand of a side in a frame (highest confidence), nullptr if none.
 const TrackedHand* handOfSide(const TrackerFrame& frame, bool right);

@@ -303,7 +303,7 @@ TEST(LeapRecording, HandRejectionReasons) {
       {"duplicate id", "{\"id\": 8, \"type\": \"left\"", "{\"id\": 7, \"type\": \"left\"", HandReject::kDuplicateId},
       {"bad type", "\"type\": \"left\"", "\"type\": \"middle\"", HandReject::kBadType},
       {"float id", "{\"id\": 8,", "{\"id\": 8.5,", HandReject::kBadType},
-      {"missing confidence", "\"confidence\": 0.5,", "", HandReject::kMissingField},
+      {"confidence not a number", "\"confidence\": 0.5,", "\"confidence\": \"high\",", HandReject::kMissingField},
       {"confidence > 1", "\"confidence\": 0.5,", "\"confidence\": 1.5,", HandReject::kBadConfidence},
       {"short vector", "\"palmPosition\": [-150, 180, 0]", "\"palmPosition\": [-150, 180]", HandReject::kMissingField},
       {"string component", "\"palmPosition\": [-150, 180, 0]", "\"palmPosition\": [-150, \"x\", 0]", HandReject::kMissingField},
@@ -362,6 +362,34 @@ TEST(LeapRecording, FrameRejectionReasonsAndStructureErrors) {
   EXPECT_EQ(error("{\"frames\": [5, {\"id\": 1}]}").rfind("SRC: no usable frames (frames 0/2 (rejected: not an object 1, missing or non-integer timestamp 1)", 0), 0u);
   EXPECT_EQ(error("{\"metadata\": {\"formatVersion\": \"0.2\"}, \"frames\": []}"),
             "SRC: unsupported formatVersion 0.2 (supported: 0.1, 1, 2)");
+}
+
+// Leap SDK 2.0 recordings carry no "confidence" on hands: the format's default (a hand in a frame
+// is tracked, confidence 1), counted, instead of rejecting every hand ("no tracked hands").
+TEST(LeapRecording, MissingConfidenceIsTheFormatDefault) {
+  const std::string tiny = readText(dataPath("tiny.json"));
+  std::string sdk2 = tiny;
+  size_t removed = 0;
+  for (size_t at; (at = sdk2.find("\"confidence\": ")) != std::string::npos; ++removed) {
+    const size_t comma = sdk2.find(',', at);
+    sdk2.erase(at, comma + 1 - at);
+  }
+  ASSERT_GT(removed, 0u);
+  const Recording with = Recording::fromText(tiny, "tiny");
+  const Recording without = Recording::fromText(sdk2, "sdk2");
+  EXPECT_EQ(without.stats().hands_rejected_total(), 0u) << without.stats().summary();
+  EXPECT_EQ(without.stats().hands_read, with.stats().hands_read);
+  EXPECT_EQ(without.stats().hands_confidence_defaulted, without.stats().hands_read);
+  EXPECT_EQ(with.stats().hands_confidence_defaulted, 0u);
+  EXPECT_NE(without.stats().summary().find("hands without confidence (default 1)"), std::string::npos) << without.stats().summary();
+  ASSERT_EQ(without.frames().size(), with.frames().size());
+  for (size_t i = 0; i < with.frames().size(); ++i) {
+    ASSERT_EQ(without.frames()[i].hands.size(), with.frames()[i].hands.size());
+    for (size_t k = 0; k < with.frames()[i].hands.size(); ++k) {
+      EXPECT_EQ(without.frames()[i].hands[k].confidence, Recording::kDefaultConfidence);
+      EXPECT_EQ(without.frames()[i].hands[k].X_W_palm.p, with.frames()[i].hands[k].X_W_palm.p);
+    }
+  }
 }
 
 }  // namespace
