@@ -1,0 +1,508 @@
+// godhand viewer page: the scene (meshes fetched from the viewer, posed by SceneState), every God
+// hand solid and its targets as a translucent ghost, contact points and force arrows, stale / held
+// marks, live figures and a per-stage time chart; live over the Foxglove WebSocket feed or offline
+// from a godhand-bench --poses file (timeline). window.godhand exposes what was drawn (for tests).
+import * as THREE from 'three';
+import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
+import { Feed } from './feed.js';
+
+// Colours: God hands solid (right blue, left green, others violet); ghosts translucent orange /
+// pink; contacts yellow points, force arrows red. The Chromium test checks for these hues.
+const GOD_COLOURS = [0x2f7fe0, 0x28b45a, 0x9a5ae0];
+const GHOST_COLOURS = [0xff8a1e, 0xff4fb0, 0xffd21e];
+const STALE_COLOUR = 0xd23c3c;
+
+const view = document.getElementById('view');
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(window.devicePixelRatio || 1);
+renderer.setSize(view.clientWidth, view.clientHeight);
+view.appendChild(renderer.domElement);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0x202226);
+const camera = new THREE.PerspectiveCamera(45, view.clientWidth / view.clientHeight, 0.005, 50);
+camera.up.set(0, 0, 1);
+camera.position.set(0.55, -0.65, 0.55);
+const controls = new OrbitControls(camera, renderer.domElement);
+controls.target.set(0, 0, 0.1);
+controls.update();
+scene.add(new THREE.HemisphereLight(0xffffff, 0x404048, 1.6));
+const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+sun.position.set(0.5, -0.8, 1.5);
+scene.add(sun);
+const grid = new THREE.GridHelper(2, 40, 0x444a52, 0x33373d);
+grid.rotation.x = Math.PI / 2;
+scene.add(grid);
+window.addEventListener('resize', () => {
+  camera.aspect = view.clientWidth / view.clientHeight;
+  camera.updateProjectionMatrix();
+  renderer.setSize(view.clientWidth, view.clientHeight);
+});
+
+const nowNs = () => (performance.timeOrigin + performance.now()) * 1e6;
+const setPose = (obj, p) => {
+  if (!p || p[0] === null || p[3] === null) { obj.visible = false; return; }
+  obj.visible = true;
+  obj.position.set(p[0], p[1], p[2]);
+  obj.quaternion.set(p[4], p[5], p[6], p[3]);  // wire (w, x, y, z) -> three (x, y, z, w)
+};
+
+// ---------- the scene ----------
+const sceneRoot = new THREE.Group();
+scene.add(sceneRoot);
+let sceneObjects = new Map();   // index -> Object3D
+let sceneGeneration = null;
+const staticMat = new THREE.MeshStandardMaterial({ color: 0x9aa0a8, roughness: 0.85, metalness: 0.0 });
+const dynamicMat = new THREE.MeshStandardMaterial({ color: 0xc8b48c, roughness: 0.7, metalness: 0.0 });
+
+async function loadScene(desc) {
+  const key = `${desc.file}|${desc.generation}`;
+  if (key === sceneGeneration) return;
+  sceneGeneration = key;
+  for (const o of sceneObjects.values()) sceneRoot.remove(o);
+  sceneObjects = new Map();
+  godhand.scene = { name: desc.name, objects: desc.objects.length, meshes: 0, triangles: 0 };
+  for (const o of desc.objects) {
+    const holder = new THREE.Group();
+    setPose(holder, o.pose);
+    sceneRoot.add(holder);
+    sceneObjects.set(o.index, holder);
+    if (!desc.generation) {
+      holder.add(new THREE.Mesh(new THREE.BoxGeometry(0.05, 0.05, 0.05), o.dynamic ? dynamicMat : staticMat));
+      continue;
+    }
+    fetch(`mesh/${desc.generation}/${o.index}.bin`).then((r) => (r.ok ? r.arrayBuffer() : null)).then((buf) => {
+      if (!buf || sceneObjects.get(o.index) !== holder) return;
+      const dv = new DataView(buf);
+      if (dv.getUint32(0, true) !== 0x314d4847) return;  // "GHM1"
+      const nv = dv.getUint32(4, true), nt = dv.getUint32(8, true);
+      const g = new THREE.BufferGeometry();
+      g.setAttribute('position', new THREE.BufferAttribute(new Float32Array(buf, 12, nv * 3), 3));
+      g.setIndex(new THREE.BufferAttribute(new Uint32Array(buf, 12 + 12 * nv, nt * 3), 1));
+      g.computeVertexNormals();
+      holder.add(new THREE.Mesh(g, o.dynamic ? dynamicMat : staticMat));
+      godhand.scene.meshes++;
+      godhand.scene.triangles += nt;
+    });
+  }
+}
+
+function applySceneState(s) {
+  for (const o of s.objects) {
+    const h = sceneObjects.get(o.index);
+    if (h) setPose(h, o.pose);
+  }
+}
+
+// ---------- hands ----------
+const geometryCache = new Map();
+function bodyGeometry(shape) {
+  const key = shape.join(',');
+  let g = geometryCache.get(key);
+  if (g) return g;
+  const [type, r, hl, hx, hy, hz] = shape;
+  if (type === 0) {
+    g = new THREE.CapsuleGeometry(Math.max(r, 1e-4), Math.max(2 * hl, 1e-6), 6, 12);
+    g.rotateX(Math.PI / 2);  // three's capsule runs along y; the body's along z
+  } else if (type === 1) {
+    g = new THREE.SphereGeometry(Math.max(r, 1e-4), 16, 12);
+  } else {
+    g = new THREE.BoxGeometry(2 * hx + 2 * r, 2 * hy + 2 * r, 2 * hz + 2 * r);
+  }
+  geometryCache.set(key, g);
+  return g;
+}
+
+class HandView {
+  constructor(index, name) {
+    this.index = index;
+    this.name = name;
+    const c = GOD_COLOURS[index % GOD_COLOURS.length];
+    this.godMat = new THREE.MeshStandardMaterial({ color: c, roughness: 0.5, metalness: 0.05 });
+    this.godColour = c;
+    this.ghostMat = new THREE.MeshBasicMaterial({ color: GHOST_COLOURS[index % GHOST_COLOURS.length], transparent: true,
+      opacity: 0.38, depthWrite: false });
+    this.god = new THREE.Group();
+    this.ghost = new THREE.Group();
+    this.ghost.renderOrder = 2;
+    scene.add(this.god, this.ghost);
+    this.godBodies = [];
+    this.ghostBodies = [];
+    this.shapes = null;
+    this.state = null;
+    this.target = null;
+    this.drawnFrame = 0;
+    this.pendingRecv = null;
+    this.rate = new RateMeter();
+  }
+
+  ensureBodies(shapes) {
+    const key = JSON.stringify(shapes);
+    if (key === this.shapes) return;
+    this.shapes = key;
+    for (const m of this.godBodies) this.god.remove(m);
+    for (const m of this.ghostBodies) this.ghost.remove(m);
+    this.godBodies = shapes.map((s) => new THREE.Mesh(bodyGeometry(s), this.godMat));
+    this.ghostBodies = shapes.map((s) => new THREE.Mesh(bodyGeometry(s), this.ghostMat));
+    this.god.add(...this.godBodies);
+    this.ghost.add(...this.ghostBodies);
+  }
+
+  setState(s) {
+    this.ensureBodies(s.shapes);
+    this.state = s;
+    s.poses.forEach((p, b) => setPose(this.godBodies[b], p));
+    this.god.visible = s.started;
+    const marked = s.stale || s.held;
+    this.godMat.color.setHex(s.stale ? STALE_COLOUR : this.godColour);
+    this.godMat.emissive.setHex(marked ? 0x331010 : 0x000000);
+    this.pendingRecv = s.recv_ns;
+    this.pendingFrame = s.stamp.frame;
+    this.rate.tick();
+  }
+
+  setTargets(targets, driven, tracked) {
+    if (!this.ghostBodies.length) return;
+    this.target = { targets, driven, tracked };
+    this.ghost.visible = tracked !== false;
+    targets.forEach((p, b) => {
+      if (b < this.ghostBodies.length) {
+        setPose(this.ghostBodies[b], driven && driven[b] === false ? null : p);
+      }
+    });
+  }
+
+  // Mean distance (m) from each God body to its target: the tracking lag.
+  lag() {
+    if (!this.state || !this.target) return null;
+    let sum = 0, n = 0;
+    this.state.poses.forEach((p, b) => {
+      const t = this.target.targets[b];
+      if (!t || !p || p[0] === null || t[0] === null) return;
+      sum += Math.hypot(p[0] - t[0], p[1] - t[1], p[2] - t[2]);
+      n++;
+    });
+    return n ? sum / n : null;
+  }
+}
+
+class RateMeter {
+  constructor() { this.times = []; }
+  tick() { const t = performance.now(); this.times.push(t); while (this.times.length && t - this.times[0] > 2000) this.times.shift(); }
+  hz() { const t = performance.now(); while (this.times.length && t - this.times[0] > 2000) this.times.shift(); return this.times.length / 2; }
+}
+
+const hands = new Map();  // index -> HandView
+function hand(index, name) {
+  let h = hands.get(index);
+  if (!h) { h = new HandView(index, name); hands.set(index, h); }
+  return h;
+}
+
+// ---------- contacts ----------
+const contactRoot = new THREE.Group();
+scene.add(contactRoot);
+const contactMat = new THREE.MeshBasicMaterial({ color: 0xffe14d });
+const contactGeom = new THREE.SphereGeometry(0.0022, 8, 6);
+const arrows = [], points = [];
+const FORCE_SCALE = 0.02;  // m per N
+function setContacts(list) {
+  while (arrows.length < list.length && arrows.length < 320) {
+    const a = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0.02, 0xff3030, 0.006, 0.004);
+    const p = new THREE.Mesh(contactGeom, contactMat);
+    arrows.push(a); points.push(p);
+    contactRoot.add(a, p);
+  }
+  const dir = new THREE.Vector3();
+  arrows.forEach((a, i) => {
+    const c = list[i];
+    const on = !!c && c.p[0] !== null && c.n[0] !== null;
+    a.visible = points[i].visible = on;
+    if (!on) return;
+    points[i].position.set(c.p[0], c.p[1], c.p[2]);
+    a.position.set(c.p[0], c.p[1], c.p[2]);
+    dir.set(c.n[0], c.n[1], c.n[2]).normalize();
+    a.setDirection(dir);
+    a.setLength(Math.min(0.08, Math.max(0.008, FORCE_SCALE * (c.lambda || 0))), 0.006, 0.004);
+  });
+  godhand.contacts = list.length;
+}
+
+// ---------- figures ----------
+const STAGES = [['contacts', '#4fa3ff'], ['assembly', '#a0a0ff'], ['solve', '#ffb04f'], ['integrate', '#7fd67f'],
+  ['ccd', '#ff6f6f'], ['merge', '#d0d0d0'], ['scene', '#c8b48c']];
+document.getElementById('legend').innerHTML = STAGES.map(([n, c]) => `<span><i style="background:${c}"></i>${n}</span>`).join('');
+const chart = document.getElementById('chart').getContext('2d');
+const history = [];  // per HandState (hand 0's, plus the scene step): stage times in us
+let sceneStepUs = 0;
+const latencies = [];     // recv -> drawn (ms), newest last
+const e2e = [];           // tracker sample -> drawn (ms)
+const services = new Map();
+let viewerStats = null;
+const renderRate = new RateMeter();
+
+function median(a) { if (!a.length) return null; const s = [...a].sort((x, y) => x - y); return s[Math.floor(s.length / 2)]; }
+function pct(a, p) { if (!a.length) return null; const s = [...a].sort((x, y) => x - y); return s[Math.min(s.length - 1, Math.floor(p * s.length))]; }
+const fmt = (v, d = 1) => (v === null || v === undefined || Number.isNaN(v) ? '–' : Number(v).toFixed(d));
+
+function drawChart() {
+  const w = chart.canvas.width, hgt = chart.canvas.height;
+  chart.clearRect(0, 0, w, hgt);
+  const n = history.length;
+  if (!n) return;
+  const max = Math.max(200, ...history.map((h) => STAGES.reduce((s, [k]) => s + (h[k] || 0), 0)));
+  const bw = w / 100;
+  history.forEach((h, i) => {
+    let y = hgt;
+    for (const [k, c] of STAGES) {
+      const v = ((h[k] || 0) / max) * (hgt - 12);
+      chart.fillStyle = c;
+      chart.fillRect(i * bw, y - v, Math.max(1, bw - 0.5), v);
+      y -= v;
+    }
+  });
+  chart.fillStyle = '#ccc';
+  chart.font = '10px sans-serif';
+  chart.fillText(`per-stage time, µs (max ${max.toFixed(0)})`, 4, 10);
+}
+
+function updateHud() {
+  const rows = [];
+  rows.push(['render', `${fmt(renderRate.hz(), 0)} fps`]);
+  rows.push(['feed', feed ? `${fmt(feed.received, 0)} msgs` : 'offline file']);
+  if (latencies.length) {
+    rows.push(['viewer → drawn', `${fmt(median(latencies))} ms (p99 ${fmt(pct(latencies, 0.99))})`]);
+    rows.push(['tracker → drawn', `${fmt(median(e2e))} ms (p99 ${fmt(pct(e2e, 0.99))})`]);
+  }
+  if (viewerStats) rows.push(['dropped (slow browsers)', `${viewerStats.dropped}`]);
+  document.getElementById('figures').innerHTML = rows.map(([k, v]) => `<tr><td>${k}</td><td class="v">${v}</td></tr>`).join('');
+  const hs = [...hands.values()].sort((a, b) => a.index - b.index).map((h) => {
+    const s = h.state;
+    let badge = '<span class="badge off">waiting</span>';
+    if (s) badge = s.stale ? '<span class="badge stale">STALE</span>' : s.held ? '<span class="badge held">held</span>' : '<span class="badge fresh">live</span>';
+    if (s && !s.tracked) badge += '<span class="badge off">untracked</span>';
+    const pen = s && s.penetration_m !== null && s.penetration_m !== undefined ? `${fmt(s.penetration_m * 1000, 3)} mm` : '–';
+    const lag = h.lag();
+    return `<div id="hand-${h.index}" data-stale="${s ? s.stale : ''}" data-held="${s ? s.held : ''}">` +
+      `<b style="color:#${h.godColour.toString(16).padStart(6, '0')}">${h.name}</b> ${badge} ` +
+      `${fmt(h.rate.hz(), 0)} Hz · frame ${s ? s.stamp.frame : '–'} · contacts ${s ? s.contacts : '–'} · ` +
+      `penetration ${pen} · lag ${lag === null ? '–' : fmt(lag * 1000, 1) + ' mm'}</div>`;
+  });
+  document.getElementById('hands').innerHTML = hs.join('');
+  const svc = [...services.values()].sort((a, b) => a.service.localeCompare(b.service)).map((s) => {
+    const age = (nowNs() - s.recv_ns) / 1e9;
+    const state = age > 2 ? 'gone' : s.state;
+    return `<tr><td>${s.service}</td><td><span class="badge ${state === 'running' ? 'fresh' : 'stale'}">${state}</span></td>` +
+      `<td class="v">${fmt(s.rate_hz, 1)} Hz</td><td class="v">${fmt(s.latency_median_us / 1000, 2)} ms</td></tr>`;
+  });
+  document.getElementById('services').innerHTML = svc.join('');
+  drawChart();
+}
+setInterval(updateHud, 250);
+
+// ---------- test hooks ----------
+const godhand = {
+  mode: null,
+  connected: false,
+  scene: null,
+  contacts: 0,
+  received: { hand_state: 0, hand_target: 0, scene_state: 0, contact_forces: 0, service_status: 0, scene_description: 0 },
+  renders: 0,
+  latenciesMs: latencies,
+  endToEndMs: e2e,
+  // What was drawn in the last rendered frame, per hand: frame, stale/held, and each God body's
+  // world pose read back from three.js ([px, py, pz, qw, qx, qy, qz]).
+  drawn: {},
+  hands: () => [...hands.keys()],
+  offline: null,
+};
+window.godhand = godhand;
+
+function recordDrawn() {
+  const t = nowNs();
+  for (const h of hands.values()) {
+    if (!h.state) continue;
+    const p = new THREE.Vector3(), q = new THREE.Quaternion(), s = new THREE.Vector3();
+    const poses = h.godBodies.map((m) => { m.matrixWorld.decompose(p, q, s); return [p.x, p.y, p.z, q.w, q.x, q.y, q.z]; });
+    const ghost = h.ghostBodies.map((m) => { m.matrixWorld.decompose(p, q, s); return [p.x, p.y, p.z, q.w, q.x, q.y, q.z]; });
+    godhand.drawn[h.index] = { cluster: h.name, frame: h.pendingFrame, run: h.state.stamp.run, stale: h.state.stale, held: h.state.held,
+      poses, ghost, ghostVisible: h.ghost.visible };
+    if (h.pendingRecv) {
+      latencies.push((t - h.pendingRecv) / 1e6);
+      if (h.state.stamp.source_ns > 0) e2e.push((t - h.state.stamp.source_ns) / 1e6);
+      if (latencies.length > 2000) latencies.shift();
+      if (e2e.length > 2000) e2e.shift();
+      h.pendingRecv = null;
+    }
+  }
+}
+
+function animate() {
+  requestAnimationFrame(animate);
+  if (offline && offline.playing) offline.advance();
+  synthetic.step();
+  controls.update();
+  renderer.render(scene, camera);
+  godhand.renders++;
+  renderRate.tick();
+  recordDrawn();
+}
+
+// ---------- live ----------
+let feed = null;
+let framedCamera = false;
+function frameCamera(poses) {
+  if (framedCamera || !poses.length || poses[0][0] === null) return;
+  framedCamera = true;
+  const c = new THREE.Vector3();
+  poses.forEach((p) => c.add(new THREE.Vector3(p[0], p[1], p[2])));
+  c.divideScalar(poses.length);
+  controls.target.copy(c);
+  camera.position.set(c.x + 0.35, c.y - 0.45, c.z + 0.3);
+  controls.update();
+}
+
+function onMessage(topic, m) {
+  const kind = topic.replace('godhand/', '');
+  if (godhand.received[kind] !== undefined) godhand.received[kind]++;
+  switch (kind) {
+    case 'hand_state': {
+      const h = hand(m.hand, m.cluster);
+      h.setState(m);
+      frameCamera(m.poses);
+      if (m.hand === Math.min(...hands.keys())) {
+        history.push({ ...m.times_us, scene: sceneStepUs });
+        if (history.length > 100) history.shift();
+      }
+      break;
+    }
+    case 'hand_target': {
+      const h = hand(m.hand, m.cluster);
+      if (!synthetic.owns(m.hand)) h.setTargets(m.targets, m.driven, m.tracked);
+      break;
+    }
+    case 'scene_description': loadScene(m); break;
+    case 'scene_state': sceneStepUs = m.step_us || 0; applySceneState(m); break;
+    case 'contact_forces': setContacts(m.contacts); break;
+    case 'service_status': services.set(m.service, m); break;
+    case 'viewer_stats': viewerStats = m; break;
+    default: break;
+  }
+}
+
+function startLive() {
+  document.getElementById('mode').textContent = 'live';
+  const conn = document.getElementById('conn');
+  feed = new Feed(`ws://${location.host}/`, {
+    onMessage,
+    onOpen: () => { godhand.connected = true; conn.textContent = 'connected'; conn.className = 'badge fresh'; },
+    onClose: () => { godhand.connected = false; conn.textContent = 'reconnecting'; conn.className = 'badge stale'; },
+  });
+  godhand.feed = feed;
+}
+
+// ---------- synthetic hand (no tracker): the page moves a hand's targets ----------
+// Press S to take over the lowest-numbered hand: its current targets (or God poses) are the
+// start, W/A/S/D/Q/E (x/y/z) or Shift-drag move them, and the viewer publishes them as that
+// hand's HandTarget on its DDS domain (godhand-viewer --synthetic). The ghost shows them at once.
+const synthetic = {
+  hand: null, base: null, offset: new THREE.Vector3(), keys: new Set(), lastSent: 0, frame: 0, sent: 0,
+  owns(i) { return this.hand === i; },
+  toggle() {
+    if (this.hand !== null) { this.hand = null; return; }
+    const h = [...hands.values()].sort((a, b) => a.index - b.index)[0];
+    if (!h || !h.state) return;
+    this.hand = h.index;
+    this.base = (h.target && h.target.tracked ? h.target.targets : h.state.poses).map((p) => [...p]);
+    this.offset.set(0, 0, 0);
+  },
+  step() {
+    if (this.hand === null || !feed) return;
+    const speed = 0.004;
+    const k = this.keys;
+    if (k.has('w')) this.offset.y += speed; if (k.has('s')) this.offset.y -= speed;
+    if (k.has('d')) this.offset.x += speed; if (k.has('a')) this.offset.x -= speed;
+    if (k.has('e')) this.offset.z += speed; if (k.has('q')) this.offset.z -= speed;
+    const t = performance.now();
+    if (t - this.lastSent < 15) return;
+    this.lastSent = t;
+    const targets = this.base.map((p) => [p[0] + this.offset.x, p[1] + this.offset.y, p[2] + this.offset.z, p[3], p[4], p[5], p[6]]);
+    const h = hands.get(this.hand);
+    h.setTargets(targets, null, true);
+    feed.publish('godhand/synthetic_target', { hand: this.hand, frame: ++this.frame, targets });
+    this.sent++;
+  },
+};
+godhand.synthetic = synthetic;
+window.addEventListener('keydown', (e) => {
+  if (e.key === 'S' || (e.key === 's' && synthetic.hand === null)) { synthetic.toggle(); return; }
+  synthetic.keys.add(e.key.toLowerCase());
+});
+window.addEventListener('keyup', (e) => synthetic.keys.delete(e.key.toLowerCase()));
+let dragFrom = null;
+renderer.domElement.addEventListener('pointerdown', (e) => { if (e.shiftKey && synthetic.hand !== null) { dragFrom = [e.clientX, e.clientY]; controls.enabled = false; } });
+window.addEventListener('pointerup', () => { dragFrom = null; controls.enabled = true; });
+window.addEventListener('pointermove', (e) => {
+  if (!dragFrom) return;
+  // Screen drag -> motion in the camera's view plane.
+  const dx = (e.clientX - dragFrom[0]) * 0.0008, dy = (e.clientY - dragFrom[1]) * 0.0008;
+  dragFrom = [e.clientX, e.clientY];
+  const right = new THREE.Vector3().setFromMatrixColumn(camera.matrixWorld, 0);
+  const up = new THREE.Vector3().setFromMatrixColumn(camera.matrixWorld, 1);
+  synthetic.offset.addScaledVector(right, dx).addScaledVector(up, -dy);
+});
+
+// ---------- offline ----------
+let offline = null;
+async function startOffline() {
+  document.getElementById('mode').textContent = 'offline';
+  const data = await (await fetch('offline.json')).json();
+  loadScene(data.scene);
+  const tl = document.getElementById('timeline');
+  tl.style.display = 'block';
+  const scrub = document.getElementById('scrub');
+  const label = document.getElementById('frame-label');
+  const play = document.getElementById('play');
+  scrub.max = String(data.frames.length - 1);
+  data.hands.forEach((hd, i) => hand(i, hd.name));
+  offline = {
+    data, index: 0, playing: true, last: performance.now(), fps: 50,
+    show(i) {
+      this.index = Math.max(0, Math.min(data.frames.length - 1, i));
+      scrub.value = String(this.index);
+      label.textContent = `frame ${data.frames[this.index]} (${this.index + 1}/${data.frames.length})`;
+      data.hands.forEach((hd, hi) => {
+        const h = hands.get(hi);
+        const flat = hd.poses[this.index];
+        const poses = hd.shapes.map((_, b) => (flat ? flat.slice(7 * b, 7 * b + 7) : [null]));
+        h.setState({ hand: hi, cluster: hd.name, stamp: { frame: data.frames[this.index], source_ns: 0, run: 0 }, recv_ns: null,
+          tracked: !!flat, started: !!flat, stale: false, held: false, contacts: null, penetration_m: null, shapes: hd.shapes, poses });
+        h.pendingRecv = null;
+        if (hd.targets) {
+          const tf = hd.targets[this.index];
+          h.setTargets(hd.shapes.map((_, b) => (tf ? tf.slice(7 * b, 7 * b + 7) : [null])), null, !!tf);
+        } else {
+          h.ghost.visible = false;
+        }
+        if (flat) frameCamera(poses);
+      });
+      godhand.offline = { frame: data.frames[this.index], index: this.index, frames: data.frames.length, hands: data.hands.length,
+        has_targets: data.has_targets };
+    },
+    advance() {
+      const t = performance.now();
+      if (t - this.last < 1000 / this.fps) return;
+      this.last = t;
+      this.show(this.index + 1 >= data.frames.length ? 0 : this.index + 1);
+    },
+  };
+  scrub.addEventListener('input', () => { offline.playing = false; play.textContent = 'play'; offline.show(Number(scrub.value)); });
+  play.addEventListener('click', () => { offline.playing = !offline.playing; play.textContent = offline.playing ? 'pause' : 'play'; });
+  godhand.showFrame = (i) => { offline.playing = false; play.textContent = 'play'; offline.show(i); };
+  offline.show(0);
+}
+
+fetch('mode.json').then((r) => r.json()).then((m) => {
+  godhand.mode = m.mode;
+  if (m.mode === 'offline') startOffline(); else startLive();
+});
+animate();

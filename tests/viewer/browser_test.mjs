@@ -1,0 +1,537 @@
+// The browser viewer, end to end: Debian's chromium (headless, driven by playwright-core) against
+// real godhand-viewer and godhand-launch processes on their own DDS domain. No mocks: the page
+// is the bundled one, the feed the real Foxglove WebSocket server, the hands come from the real
+// services. Every wait has a deadline; every process started here is stopped here.
+//
+// usage: node browser_test.mjs CASE BIN_DIR DEPLOY_DIR WEB_DIR DOMAIN
+// cases: live | poses | offline | abuse | measure
+//   live     two live hands: connected, frames at the live rate, both hands drawn, a screenshot
+//            with the God and ghost colours, stale marks while the scene service is killed, recovery
+//   poses    lock-step run: every God-body pose the page drew equals godhand-bench's --poses row
+//            of that frame (the in-process run, bit-identical to the lock-step distributed one)
+//   offline  godhand-viewer --poses on a bench CSV (with target columns added): timeline frames,
+//            drawn God and ghost poses equal the file; bad command lines exit 2 with one line
+//   abuse    malformed and oversized WebSocket messages, a client that never reads, 20 clients
+//            connecting and leaving, bad HTTP: the viewer keeps serving the page at the live
+//            rate and the services' run passes its --check
+//   measure  (figures, not a pass/fail test) services' latency with 0 and 5 browsers, the
+//            viewer's added latency and CPU
+import { spawn, spawnSync } from 'node:child_process';
+import fs from 'node:fs';
+import net from 'node:net';
+import os from 'node:os';
+import path from 'node:path';
+
+const [CASE, BIN, DEPLOY, WEB, DOMAIN] = process.argv.slice(2);
+const CHROMIUM = '/usr/bin/chromium';
+const TMP = fs.mkdtempSync(path.join(os.tmpdir(), 'godhand-viewer-test-'));
+const REC2 = path.join(DEPLOY, 'recordings', 'confidence2-49fps.json');
+const REC1 = path.join(DEPLOY, 'recordings', 'pinch.json');
+const failures = [];
+const children = [];
+
+function check(ok, what) {
+  console.log((ok ? 'ok:     ' : 'FAILED: ') + what);
+  if (!ok) failures.push(what);
+}
+function skip(why) {
+  console.log('SKIP: ' + why);
+  process.exit(77);
+}
+const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
+
+if (!fs.existsSync(CHROMIUM)) skip(`${CHROMIUM} not installed (Debian package chromium; deploy/install-deps.sh)`);
+const pwPath = path.join(WEB, 'node_modules', 'playwright-core', 'index.mjs');
+if (!fs.existsSync(pwPath)) skip(`${pwPath} missing (run npm ci in services/viewer/web; deploy/run.sh does)`);
+const { chromium } = await import(pwPath);
+
+// ---------- processes ----------
+function start(cmd, args, name) {
+  console.log('$ ' + [cmd, ...args].join(' '));
+  const p = spawn(cmd, args, { stdio: ['ignore', 'pipe', 'pipe'] });
+  p.out = '';
+  p.err = '';
+  p.stdout.on('data', (d) => { p.out += d; });
+  p.stderr.on('data', (d) => { p.err += d; });
+  p.exited = new Promise((resolve) => p.on('exit', (code, sig) => resolve({ code, sig })));
+  p.name = name;
+  children.push(p);
+  return p;
+}
+
+async function stop(p, graceMs = 5000) {
+  if (p.exitCode !== null || p.signalCode !== null) return p.exited;
+  p.kill('SIGTERM');
+  const t = setTimeout(() => p.kill('SIGKILL'), graceMs);
+  const r = await p.exited;
+  clearTimeout(t);
+  return r;
+}
+
+async function startViewer(extra) {
+  const v = start(path.join(BIN, 'godhand-viewer'), ['--port', '0', '--quiet', ...extra], 'viewer');
+  const deadline = Date.now() + 30000;
+  while (Date.now() < deadline) {
+    const m = v.out.match(/^viewer: (http:\/\/127\.0\.0\.1:(\d+)\/)$/m);
+    if (m) return { proc: v, url: m[1], port: Number(m[2]) };
+    if (v.exitCode !== null) break;
+    await sleep(50);
+  }
+  console.log(v.err);
+  throw new Error('godhand-viewer did not print its URL line within 30 s');
+}
+
+function launch(extra) {
+  const report = path.join(TMP, `launch-${Date.now()}.json`);
+  const p = start(path.join(BIN, 'godhand-launch'),
+    ['--domain', DOMAIN, '--quiet', '--json', report, '--log-dir', path.join(TMP, 'logs'), ...extra], 'launch');
+  p.report = report;
+  p.done = (async () => {
+    const t = setTimeout(() => p.kill('SIGKILL'), 150000);
+    const r = await p.exited;
+    clearTimeout(t);
+    if (r.code !== 0) console.log(p.out + '\n' + p.err);
+    return { ...r, json: fs.existsSync(report) ? JSON.parse(fs.readFileSync(report, 'utf8')) : {} };
+  })();
+  return p;
+}
+
+function bench(recording, csv) {
+  const r = spawnSync(path.join(BIN, 'godhand-bench'), ['--recording', recording, '--quiet', '--poses', csv], { timeout: 120000, encoding: 'utf8' });
+  check(r.status === 0, `godhand-bench --poses ran (${r.status})`);
+  return readCsv(csv);
+}
+
+function readCsv(file) {
+  const lines = fs.readFileSync(file, 'utf8').trim().split('\n');
+  const header = lines[0].split(',');
+  const col = Object.fromEntries(header.map((h, i) => [h, i]));
+  const rows = lines.slice(1).map((l) => l.split(','));
+  return { header, col, rows, lines };
+}
+
+// ---------- the browser ----------
+const FLAGS = ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run', '--disable-background-networking',
+  '--disable-component-update', '--disable-sync'];
+let browser = null;
+async function openBrowser() {
+  // playwright gives every launch a fresh, temporary --user-data-dir of its own.
+  browser = await chromium.launch({ executablePath: CHROMIUM, args: FLAGS, headless: true, timeout: 60000 });
+  return browser;
+}
+async function openPage(url, size = { width: 1000, height: 700 }) {
+  const page = await browser.newPage({ viewport: size });
+  page.errors = [];
+  page.on('pageerror', (e) => page.errors.push(String(e)));
+  page.on('console', (m) => { if (m.type() === 'error') page.errors.push(m.text()); });
+  await page.goto(url, { timeout: 30000 });
+  return page;
+}
+
+// Counts the pixels of a PNG screenshot (decoded by the browser) near each named hue.
+async function huePixels(page, png, hues) {
+  return page.evaluate(async ({ b64, hues }) => {
+    const blob = await (await fetch('data:image/png;base64,' + b64)).blob();
+    const bmp = await createImageBitmap(blob);
+    const c = new OffscreenCanvas(bmp.width, bmp.height);
+    const g = c.getContext('2d');
+    g.drawImage(bmp, 0, 0);
+    const d = g.getImageData(0, 0, bmp.width, bmp.height).data;
+    const out = Object.fromEntries(Object.keys(hues).map((k) => [k, 0]));
+    for (let i = 0; i < d.length; i += 4) {
+      const r = d[i] / 255, gg = d[i + 1] / 255, b = d[i + 2] / 255;
+      const max = Math.max(r, gg, b), min = Math.min(r, gg, b), s = max === 0 ? 0 : (max - min) / max;
+      if (s < 0.45 || max < 0.25) continue;
+      let h = 0;
+      if (max === r) h = 60 * (((gg - b) / (max - min)) % 6);
+      else if (max === gg) h = 60 * ((b - r) / (max - min) + 2);
+      else h = 60 * ((r - gg) / (max - min) + 4);
+      if (h < 0) h += 360;
+      for (const [k, [lo, hi]] of Object.entries(hues)) if (h >= lo && h <= hi) out[k]++;
+    }
+    return out;
+  }, { b64: png.toString('base64'), hues });
+}
+// Hue bands of the page's colours (main.js): God right blue 0x2f7fe0 (~214), God left green
+// 0x28b45a (~139), ghost right orange 0xff8a1e (~28), ghost left pink 0xff4fb0 (~327).
+const HUES = { god_right: [200, 228], god_left: [125, 155], ghost_right: [18, 40], ghost_left: [312, 340] };
+
+// ---------- pose comparison ----------
+function quatClose(a, b) {
+  const dot = Math.abs(a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]);
+  return 1 - Math.min(1, dot);
+}
+function csvPoses(csv, frame, hand, prefix = '') {
+  const c = csv.col;
+  const out = [];
+  for (const r of csv.rows) {
+    if (Number(r[c.frame]) !== frame || r[c.hand] !== hand) continue;
+    out.push(['px', 'py', 'pz', 'qw', 'qx', 'qy', 'qz'].map((k) => Number(r[c[prefix + k]])));
+  }
+  return out;
+}
+function poseError(drawn, expected) {
+  if (drawn.length !== expected.length) return { pos: Infinity, rot: Infinity };
+  let pos = 0, rot = 0;
+  drawn.forEach((d, i) => {
+    const e = expected[i];
+    pos = Math.max(pos, Math.hypot(d[0] - e[0], d[1] - e[1], d[2] - e[2]));
+    rot = Math.max(rot, quatClose(d.slice(3), e.slice(3)));
+  });
+  return { pos, rot };
+}
+
+function median(a) { const s = [...a].sort((x, y) => x - y); return s.length ? s[Math.floor(s.length / 2)] : NaN; }
+function pct(a, p) { const s = [...a].sort((x, y) => x - y); return s.length ? s[Math.min(s.length - 1, Math.floor(p * s.length))] : NaN; }
+async function stats(url) { return (await fetch(url + 'stats.json')).json(); }
+
+function cpuSeconds(pid) {
+  try {
+    const f = fs.readFileSync(`/proc/${pid}/stat`, 'utf8');
+    const parts = f.slice(f.lastIndexOf(')') + 2).split(' ');
+    return (Number(parts[11]) + Number(parts[12])) / 100;  // utime + stime, clock ticks (100 Hz)
+  } catch { return NaN; }
+}
+
+// ---------- cases ----------
+async function caseLive() {
+  const v = await startViewer(['--domain', DOMAIN]);
+  await openBrowser();
+  const page = await openPage(v.url);
+  await page.waitForFunction(() => window.godhand && window.godhand.connected, null, { timeout: 20000 });
+  check(true, 'the page connected to the viewer\'s WebSocket feed');
+  const l = launch(['--recording', REC2, '--speed', '0.5', '--kill', 'scene@3', '--restart', '--restart-delay', '0.5']);
+  // Sample what the page drew, every 100 ms, until the launch ends.
+  const samples = [];
+  let shot = null, shotHands = null;
+  let ended = false;
+  l.done.then(() => { ended = true; });
+  const t0 = Date.now();
+  while (!ended && Date.now() - t0 < 120000) {
+    const s = await page.evaluate(() => ({ t: Date.now(), drawn: JSON.parse(JSON.stringify(window.godhand.drawn)),
+      received: { ...window.godhand.received }, renders: window.godhand.renders,
+      badges: [...document.querySelectorAll('#hands > div')].map((d) => ({ id: d.id, stale: d.dataset.stale, text: d.textContent })) }));
+    samples.push(s);
+    const drawnHands = Object.values(s.drawn).filter((d) => !d.stale);
+    if (!shot && drawnHands.length === 2 && s.received.hand_state > 60) {
+      shot = await page.screenshot({ path: path.join(TMP, 'live.png') });
+      shotHands = drawnHands.length;
+    }
+    await sleep(100);
+  }
+  const r = await l.done;
+  check(r.code === 0, `godhand-launch with the scene kill drill exited 0 (${r.code})`);
+  const j = r.json;
+  const fd = j.fault_drill || {};
+  check(fd.killed_s > 0 && fd.restarted_s > fd.killed_s, `the scene service was killed and restarted (${JSON.stringify(fd)})`);
+  const last = samples[samples.length - 1] || { received: {}, drawn: {} };
+  const fin = await page.evaluate(() => ({ received: window.godhand.received, lat: window.godhand.latenciesMs, e2e: window.godhand.endToEndMs,
+    scene: window.godhand.scene, errors: [] }));
+  // Frames at the live rate: the page received (nearly) every HandState the launcher's monitor saw.
+  const states = j.hand_states !== undefined ? j.hand_states : (j.frames || 0) * (j.hands || 2);
+  check(fin.received.hand_state >= 0.9 * states && states > 100,
+    `the page received ${fin.received.hand_state} HandStates (the services published ~${states})`);
+  const liveWindow = samples.filter((s) => s.received.hand_state > 0);
+  if (liveWindow.length > 10) {
+    const a = liveWindow[2], b = liveWindow[Math.min(liveWindow.length - 1, 22)];
+    const rate = (b.received.hand_state - a.received.hand_state) / ((b.t - a.t) / 1000) / 2;
+    check(rate > 0.6 * 24.25, `live rate at the page: ${rate.toFixed(1)} HandStates/s per hand (recording 48.5 Hz at --speed 0.5 = 24.3)`);
+  }
+  check(new Set(samples.flatMap((s) => Object.values(s.drawn).map((d) => d.cluster))).size === 2, 'both hands were drawn (right and left)');
+  check(fin.scene && fin.scene.meshes === fin.scene.objects && fin.scene.objects > 0,
+    `the scene's meshes were fetched and drawn (${JSON.stringify(fin.scene)})`);
+  // Stale while the scene was gone, fresh again after.
+  let sawStale = false, recovered = false;
+  for (const s of samples) {
+    const d = Object.values(s.drawn);
+    if (d.length && d.some((x) => x.stale)) sawStale = true;
+    else if (sawStale && d.length === 2 && d.every((x) => !x.stale)) recovered = true;
+  }
+  const staleBadge = samples.some((s) => s.badges.some((b) => b.text.includes('STALE')));
+  check(sawStale && staleBadge, 'hands drawn stale (and the STALE badge shown) while the scene service was killed');
+  check(recovered, 'both hands drawn fresh again after the scene service restarted');
+  // The screenshot: God and ghost colours of both hands.
+  check(!!shot && shotHands === 2, 'screenshot taken while both hands were drawn fresh');
+  if (shot) {
+    const px = await huePixels(page, shot, HUES);
+    check(px.god_right > 300 && px.god_left > 300, `God colours in the screenshot (right ${px.god_right} px, left ${px.god_left} px)`);
+    check(px.ghost_right > 100 && px.ghost_left > 100, `ghost colours in the screenshot (right ${px.ghost_right} px, left ${px.ghost_left} px)`);
+  }
+  const lat = fin.lat.slice(5);
+  check(lat.length > 50, `viewer -> drawn latency over ${lat.length} states: median ${median(lat).toFixed(1)} ms, p99 ${pct(lat, 0.99).toFixed(1)} ms`);
+  console.log(`figure: tracker sample -> drawn median ${median(fin.e2e).toFixed(1)} ms, p99 ${pct(fin.e2e, 0.99).toFixed(1)} ms`);
+  check(page.errors.length === 0, `no page errors (${page.errors.slice(0, 3).join(' | ')})`);
+  await browser.close();
+  const vr = await stop(v.proc);
+  check(vr.code === 0, `godhand-viewer stopped cleanly on SIGTERM (${vr.code}${vr.sig ? ' ' + vr.sig : ''})`);
+  check(j.shm_segments_left === 0, `the launch left no shared-memory segment (${j.shm_segments_left})`);
+}
+
+async function casePoses() {
+  const csvFile = path.join(TMP, 'bench.csv');
+  const csv = bench(REC2, csvFile);
+  const v = await startViewer(['--domain', DOMAIN]);
+  await openBrowser();
+  const page = await openPage(v.url);
+  await page.waitForFunction(() => window.godhand && window.godhand.connected, null, { timeout: 20000 });
+  // The page records every frame it drew (hand, frame, poses read back from three.js).
+  await page.evaluate(() => {
+    window.drawnLog = [];
+    const seen = new Set();
+    const tick = () => {
+      for (const d of Object.values(window.godhand.drawn)) {
+        const k = d.cluster + ':' + d.frame;
+        if (!seen.has(k)) { seen.add(k); window.drawnLog.push(JSON.parse(JSON.stringify(d))); }
+      }
+      requestAnimationFrame(tick);
+    };
+    tick();
+  });
+  const l = launch(['--recording', REC2, '--lockstep']);
+  const r = await l.done;
+  check(r.code === 0, `godhand-launch --lockstep exited 0 (${r.code})`);
+  await sleep(500);
+  const log = await page.evaluate(() => window.drawnLog);
+  let worstPos = 0, worstRot = 0, compared = 0, bodies = 0;
+  const clusters = new Set();
+  for (const d of log) {
+    if (!d.frame) continue;
+    const e = csvPoses(csv, d.frame, d.cluster);
+    if (!e.length) continue;
+    const err = poseError(d.poses, e);
+    worstPos = Math.max(worstPos, err.pos);
+    worstRot = Math.max(worstRot, err.rot);
+    compared++;
+    bodies += e.length;
+    clusters.add(d.cluster);
+  }
+  check(compared >= 4 && clusters.size === 2, `compared ${compared} drawn frames (${bodies} God bodies) of both hands with godhand-bench's rows`);
+  check(worstPos < 1e-9 && worstRot < 1e-12, `drawn God-body poses equal the in-process run's: max position error ${worstPos.toExponential(2)} m, max 1-|q.q'| ${worstRot.toExponential(2)}`);
+  check(r.json.result_hash !== undefined, `lock-step result hash ${r.json.result_hash}`);
+  check(page.errors.length === 0, `no page errors (${page.errors.slice(0, 3).join(' | ')})`);
+  await browser.close();
+  const vr = await stop(v.proc);
+  check(vr.code === 0, `godhand-viewer stopped cleanly (${vr.code})`);
+}
+
+async function caseOffline() {
+  // Bad command lines: one line, exit 2.
+  const bad = path.join(TMP, 'bad.csv');
+  fs.writeFileSync(bad, 'frame,hand,body\n1,right,palm\n');
+  const cases = [
+    [['--poses', path.join(TMP, 'missing.csv')], 'missing.csv'],
+    [['--poses', bad], 'bad.csv:1: missing column'],
+    [['--port', '70000'], '--port'],
+    [['--domain', '999'], '--domain'],
+    [['--bind', 'not-an-address'], '--bind'],
+    [['--mesh', 'x.obj'], '--mesh'],
+    [['--web-root', path.join(TMP, 'nopage')], 'index.html'],
+    [['--bogus'], '--bogus'],
+  ];
+  for (const [args, expect] of cases) {
+    const r = spawnSync(path.join(BIN, 'godhand-viewer'), [...args, '--domain', args.includes('--domain') ? '999' : DOMAIN], { timeout: 30000, encoding: 'utf8' });
+    const lines = r.stderr.split('\n').filter((x) => x.trim() && !x.startsWith('try '));
+    check(r.status === 2 && lines.length === 1 && lines[0].includes(expect), `godhand-viewer ${args.join(' ')}: exit ${r.status}, one line naming '${expect}': ${lines}`);
+  }
+  const h = spawnSync(path.join(BIN, 'godhand-viewer'), ['--help'], { encoding: 'utf8' });
+  check(h.status === 0 && h.stdout.includes('--poses') && h.stdout.includes('--port'), 'godhand-viewer --help');
+
+  // A bench file, with target columns added (the God pose moved 1 cm in x as the target; the
+  // last body of each frame without a target).
+  const csvFile = path.join(TMP, 'bench.csv');
+  const csv = bench(REC2, csvFile);
+  const withTargets = path.join(TMP, 'bench-targets.csv');
+  const c = csv.col;
+  const out = [csv.header.join(',') + ',tpx,tpy,tpz,tqw,tqx,tqy,tqz'];
+  csv.rows.forEach((r, i) => {
+    const last = i + 1 === csv.rows.length || csv.rows[i + 1][c.frame] !== r[c.frame] || csv.rows[i + 1][c.hand] !== r[c.hand];
+    const t = last ? ',,,,,,' : [Number(r[c.px]) + 0.01, r[c.py], r[c.pz], r[c.qw], r[c.qx], r[c.qy], r[c.qz]].join(',');
+    out.push(r.join(',') + ',' + t);
+  });
+  fs.writeFileSync(withTargets, out.join('\n') + '\n');
+  const v = await startViewer(['--poses', withTargets, '--scene', path.join(DEPLOY, 'scenes', 'default.pbtxt')]);
+  await openBrowser();
+  const page = await openPage(v.url);
+  await page.waitForFunction(() => window.godhand && window.godhand.offline, null, { timeout: 30000 });
+  const frames = [...new Set(csv.rows.map((r) => Number(r[c.frame])))];
+  const info = await page.evaluate(() => window.godhand.offline);
+  check(info.frames === frames.length && info.hands === 2 && info.has_targets, `timeline over ${info.frames} frames of ${info.hands} hands with targets (file: ${frames.length})`);
+  let worst = 0, worstGhost = 0, n = 0;
+  for (const idx of [0, Math.floor(frames.length / 2), frames.length - 1]) {
+    await page.evaluate((i) => window.godhand.showFrame(i), idx);
+    await page.waitForFunction((f) => Object.values(window.godhand.drawn).length === 2 && Object.values(window.godhand.drawn).every((d) => d.frame === f), frames[idx], { timeout: 10000 });
+    const drawn = await page.evaluate(() => window.godhand.drawn);
+    for (const d of Object.values(drawn)) {
+      const e = csvPoses(csv, frames[idx], d.cluster);
+      worst = Math.max(worst, poseError(d.poses, e).pos);
+      const et = e.slice(0, -1).map((p) => [p[0] + 0.01, ...p.slice(1)]);
+      worstGhost = Math.max(worstGhost, poseError(d.ghost.slice(0, -1), et).pos);
+      n++;
+    }
+  }
+  check(n === 6 && worst < 1e-9, `drawn God poses equal the file at 3 timeline positions (max error ${worst.toExponential(2)} m)`);
+  check(worstGhost < 1e-9, `drawn ghosts sit at the file's target columns (max error ${worstGhost.toExponential(2)} m)`);
+  await page.evaluate(() => window.godhand.showFrame(Math.floor(window.godhand.offline.frames / 2)));
+  await sleep(300);
+  const shot = await page.screenshot({ path: path.join(TMP, 'offline.png') });
+  const px = await huePixels(page, shot, HUES);
+  check(px.god_right > 200 && px.ghost_right > 50, `offline screenshot shows God and ghost colours (${JSON.stringify(px)})`);
+  const sc = await page.evaluate(() => window.godhand.scene);
+  check(sc && sc.meshes === sc.objects && sc.triangles > 1000, `offline scene meshes drawn (${JSON.stringify(sc)})`);
+  check(page.errors.length === 0, `no page errors (${page.errors.slice(0, 3).join(' | ')})`);
+  await browser.close();
+  const vr = await stop(v.proc);
+  check(vr.code === 0, `godhand-viewer (offline) stopped cleanly (${vr.code})`);
+}
+
+// A raw WebSocket client over TCP (RFC 6455 by hand: node 20 has no WebSocket client), so that
+// it can send what no browser would and stop reading altogether.
+function rawClient(port) {
+  return new Promise((resolve, reject) => {
+    const s = net.connect(port, '127.0.0.1');
+    let buf = '';
+    s.setTimeout(10000, () => { s.destroy(); reject(new Error('raw client timeout')); });
+    s.on('error', reject);
+    s.on('connect', () => s.write('GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n' +
+      'Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\nSec-WebSocket-Protocol: foxglove.websocket.v1\r\n\r\n'));
+    const onData = (d) => {
+      buf += d.toString('latin1');
+      if (buf.includes('\r\n\r\n')) { s.off('data', onData); s.setTimeout(0); resolve({ socket: s, status: buf.split(' ')[1] }); }
+    };
+    s.on('data', onData);
+  });
+}
+function frame(opcode, payload) {
+  const p = Buffer.isBuffer(payload) ? payload : Buffer.from(payload);
+  const mask = Buffer.from([0x12, 0x34, 0x56, 0x78]);
+  let head;
+  if (p.length < 126) head = Buffer.from([0x80 | opcode, 0x80 | p.length]);
+  else if (p.length < 65536) { head = Buffer.alloc(4); head[0] = 0x80 | opcode; head[1] = 0x80 | 126; head.writeUInt16BE(p.length, 2); }
+  else { head = Buffer.alloc(10); head[0] = 0x80 | opcode; head[1] = 0x80 | 127; head.writeBigUInt64BE(BigInt(p.length), 2); }
+  const body = Buffer.from(p.map((b, i) => b ^ mask[i % 4]));
+  return Buffer.concat([head, mask, body]);
+}
+
+async function caseAbuse() {
+  const v = await startViewer(['--domain', DOMAIN, '--max-queue-mb', '1']);
+  await openBrowser();
+  const page = await openPage(v.url);
+  await page.waitForFunction(() => window.godhand && window.godhand.connected, null, { timeout: 20000 });
+  const l = launch(['--recording', REC2, '--speed', '0.5', '--check']);
+  await page.waitForFunction(() => window.godhand.received.hand_state > 20, null, { timeout: 60000 });
+  // 1. A client that subscribes to everything (63 times over) and never reads.
+  const stuck = await rawClient(v.port);
+  check(stuck.status === '101', `raw WebSocket handshake accepted (${stuck.status})`);
+  const subs = [];
+  for (let i = 0; i < 63; i++) subs.push({ id: i + 1, channelId: (i % 7) + 1 });
+  stuck.socket.write(frame(1, JSON.stringify({ op: 'subscribe', subscriptions: subs })));
+  stuck.socket.pause();
+  // 2. Malformed messages and an oversized frame from raw clients.
+  const junk = await rawClient(v.port);
+  for (const m of ['not json', '{"op":"subscribe","subscriptions":"x"}', '{"op":"nope"}', '[]']) junk.socket.write(frame(1, m));
+  junk.socket.write(frame(2, Buffer.from([9, 9, 9])));
+  junk.socket.write(frame(2, Buffer.from([1, 7, 0, 0, 0, 0x7b, 0x7d])));  // publish on a channel never advertised
+  const big = await rawClient(v.port);
+  big.socket.write(frame(1, 'x'.repeat(200 * 1024)));  // over the 64 KB limit: the server closes it
+  const bigClosed = new Promise((r) => { big.socket.on('close', () => r(true)); setTimeout(() => r(false), 5000); });
+  big.socket.resume();
+  // Garbage HTTP and a path outside the page.
+  const g = net.connect(v.port, '127.0.0.1');
+  g.on('error', () => {});
+  g.write('\x00\x01garbage\r\n\r\n');
+  const escape = await fetch(v.url + '../../../etc/passwd').then((x) => x.status).catch(() => 0);
+  const escape2 = await fetch(v.url + 'mesh/..%2f..%2fetc%2fpasswd').then((x) => x.status).catch(() => 0);
+  // 3. Twenty clients from the browser connecting, subscribing and leaving.
+  const churn = await page.evaluate(async (url) => {
+    let opened = 0;
+    for (let i = 0; i < 20; i++) {
+      await new Promise((resolve) => {
+        const ws = new WebSocket(url, ['foxglove.websocket.v1']);
+        ws.onopen = () => { opened++; ws.send(JSON.stringify({ op: 'subscribe', subscriptions: [{ id: 1, channelId: 1 }] })); setTimeout(() => { ws.close(); resolve(); }, 50); };
+        ws.onerror = () => resolve();
+      });
+    }
+    return opened;
+  }, v.url.replace('http', 'ws'));
+  check(churn === 20, `20 clients connected and left (${churn} opened)`);
+  check(await bigClosed, 'a 200 KB frame (over the 64 KB limit) closes that connection only');
+  check(escape === 404 && escape2 === 404, `paths outside the page are not served (${escape}, ${escape2})`);
+  const before = await page.evaluate(() => window.godhand.received.hand_state);
+  await sleep(1500);
+  const after = await page.evaluate(() => window.godhand.received.hand_state);
+  check(after - before > 0.6 * 1.5 * 2 * 24.25, `the real page kept receiving at the live rate during the abuse (${after - before} HandStates in 1.5 s)`);
+  const s = await stats(v.url);
+  check(s.dropped > 0, `messages for the never-reading client were dropped and counted (${s.dropped})`);
+  const pageClient = s.per_client.find((c) => c.dropped === 0 && c.sent > 50);
+  check(!!pageClient, `the page's connection lost nothing (${JSON.stringify(s.per_client.map((c) => [c.sent, c.dropped, c.rejected]))})`);
+  check(s.rejected >= 6, `malformed client messages counted (${s.rejected})`);
+  check(s.opened >= 24, `connections opened ${s.opened}, closed ${s.closed}`);
+  const r = await l.done;
+  check(r.code === 0, `the services' run passed its --check while the viewer was abused (${r.code})`);
+  stuck.socket.destroy();
+  junk.socket.destroy();
+  g.destroy();
+  const fin = await stats(v.url).catch(() => null);
+  check(fin !== null, 'the viewer still answers after the run');
+  check(page.errors.length === 0, `no page errors (${page.errors.slice(0, 3).join(' | ')})`);
+  await browser.close();
+  const vr = await stop(v.proc);
+  check(vr.code === 0, `godhand-viewer stopped cleanly (${vr.code})`);
+  console.log(v.proc.err.trim().split('\n').slice(-1)[0]);
+}
+
+async function caseMeasure() {
+  const runs = Number(process.env.RUNS || 3);
+  const v = await startViewer(['--domain', DOMAIN]);
+  await openBrowser();
+  const results = { 0: [], 5: [] };
+  let pages = [];
+  for (let i = 0; i < runs; i++) {
+    for (const n of [0, 5]) {
+      while (pages.length < n) { pages.push(await openPage(v.url, { width: 800, height: 600 })); }
+      while (pages.length > n) await pages.pop().close();
+      for (const p of pages) await p.waitForFunction(() => window.godhand && window.godhand.connected, null, { timeout: 20000 });
+      for (const p of pages) await p.evaluate(() => { window.godhand.latenciesMs.length = 0; window.godhand.endToEndMs.length = 0; });
+      const cpu0 = cpuSeconds(v.proc.pid), t0 = Date.now();
+      const r = await launch(['--recording', REC2]).done;
+      const cpu = (cpuSeconds(v.proc.pid) - cpu0) / ((Date.now() - t0) / 1000);
+      const lat = r.json.latency_us || {};
+      const pl = [];
+      for (const p of pages) pl.push(...(await p.evaluate(() => window.godhand.latenciesMs.slice(3))));
+      results[n].push({ median: lat.median, p99: lat.p99, cpu, viewer_median: median(pl), viewer_p99: pct(pl, 0.99) });
+      console.log(`figure: browsers ${n}: services latency median ${(lat.median / 1000).toFixed(2)} ms p99 ${(lat.p99 / 1000).toFixed(2)} ms; ` +
+        `viewer CPU ${(100 * cpu).toFixed(1)} % of a core; viewer->drawn median ${median(pl).toFixed(1)} ms p99 ${pct(pl, 0.99).toFixed(1)} ms`);
+    }
+  }
+  for (const n of [0, 5]) {
+    const m = results[n].map((x) => x.median / 1000), p = results[n].map((x) => x.p99 / 1000);
+    console.log(`summary: browsers ${n}: services latency median over runs ${m.map((x) => x.toFixed(2)).join(', ')} ms; p99 ${p.map((x) => x.toFixed(2)).join(', ')} ms`);
+  }
+  await browser.close();
+  await stop(v.proc);
+  check(true, 'figures printed');
+}
+
+const CASES = { live: caseLive, poses: casePoses, offline: caseOffline, abuse: caseAbuse, measure: caseMeasure };
+if (!CASES[CASE]) { console.log(`unknown case ${CASE}`); process.exit(2); }
+const watchdog = setTimeout(() => { console.log('FAILED: the case took longer than 170 s'); cleanup().then(() => process.exit(1)); }, 170000);
+async function cleanup() {
+  if (browser) await browser.close().catch(() => {});
+  for (const p of children) await stop(p, 3000);
+}
+try {
+  await CASES[CASE]();
+} catch (e) {
+  failures.push(String(e && e.stack || e));
+  console.log('FAILED: ' + (e && e.stack || e));
+  for (const p of children) if (p.err) console.log(`--- ${p.name} stderr (tail)\n` + p.err.slice(-2000));
+}
+await cleanup();
+clearTimeout(watchdog);
+// Nothing of this domain left running.
+const left = spawnSync('pgrep', ['-af', 'godhand-'], { encoding: 'utf8' }).stdout.split('\n').filter((x) => x.includes(`--domain ${DOMAIN} `) || x.endsWith(`--domain ${DOMAIN}`));
+check(left.length === 0, `no process of domain ${DOMAIN} left (${left.join('; ')})`);
+if (failures.length === 0) fs.rmSync(TMP, { recursive: true, force: true });
+else console.log(`kept ${TMP}`);
+console.log(failures.length ? `FAILED: ${failures.length} check(s)` : 'PASSED');
+process.exit(failures.length ? 1 : 0);
