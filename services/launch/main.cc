@@ -26,6 +26,10 @@
 #include <nlohmann/json.hpp>
 
 #include "common/cli.h"
+#include "common/delivery.h"
+#include "common/drill.h"
+#include "common/watchdog.h"
+#include "launch/report.h"
 #include "common/lab_config.h"
 #include "common/signals.h"
 #include "common/supervisor.h"
@@ -73,20 +77,67 @@ std::set<std::string> shmSegments() {
   return out;
 }
 
+bool unlocked(const std::string& name) {  // nobody holds the entry's lock: left behind
+  const std::string el = "/dev/shm/" + name + "_el";
+  const int fd = open(el.c_str(), O_RDWR | O_CLOEXEC);
+  if (fd < 0) return false;
+  const bool free = flock(fd, LOCK_EX | LOCK_NB) == 0;
+  if (free) flock(fd, LOCK_UN);
+  close(fd);
+  return free;
+}
+
 // A shared-memory entry is left behind when nobody holds its lock any more (what `fastdds shm
 // clean` removes): entries of other, live Fast DDS processes (parallel runs) are not counted.
 size_t orphaned(const std::set<std::string>& before) {
   size_t n = 0;
   for (const std::string& name : shmSegments()) {
     if (before.count(name) || name.size() < 3 || name.compare(name.size() - 3, 3, "_el") == 0) continue;
-    const std::string el = "/dev/shm/" + name + "_el";
-    const int fd = open(el.c_str(), O_RDWR | O_CLOEXEC);
-    if (fd < 0) continue;
-    if (flock(fd, LOCK_EX | LOCK_NB) == 0) {
-      ++n;
-      flock(fd, LOCK_UN);
+    if (unlocked(name)) ++n;
+  }
+  return n;
+}
+
+// The Fast DDS shared-memory entries a process has open or mapped (/proc/PID/fd, /proc/PID/maps):
+// its own participant segments and the domain's port segments. Read while it runs, so that the
+// entries a killed process leaves behind are known by name and removed by this launcher alone
+// (never `fastdds shm clean`, which removes every lab's orphaned segments).
+void noteShm(pid_t pid, std::set<std::string>* out) {
+  const std::string fd_dir = "/proc/" + std::to_string(pid) + "/fd";
+  if (DIR* d = opendir(fd_dir.c_str())) {
+    while (dirent* e = readdir(d)) {
+      char target[512];
+      const ssize_t n = readlink((fd_dir + "/" + e->d_name).c_str(), target, sizeof target - 1);
+      if (n <= 0) continue;
+      target[n] = 0;
+      const std::string t(target);
+      if (t.rfind("/dev/shm/", 0) == 0 && t.find("fastrtps_") != std::string::npos) out->insert(t.substr(9));
     }
-    close(fd);
+    closedir(d);
+  }
+  std::ifstream maps("/proc/" + std::to_string(pid) + "/maps");
+  std::string line;
+  while (std::getline(maps, line)) {
+    const size_t at = line.find("/dev/shm/");
+    if (at != std::string::npos && line.find("fastrtps_", at) != std::string::npos) {
+      std::string n = line.substr(at + 9);
+      const size_t sp = n.find(' ');
+      if (sp != std::string::npos) n = n.substr(0, sp);
+      out->insert(n);
+    }
+  }
+}
+
+// Removes the entries of a dead process that nobody else holds: its participant segments (not the
+// domain's port segments, which other live participants of the host share) whose lock is free.
+size_t removeOwnShm(const std::set<std::string>& names) {
+  size_t n = 0;
+  for (const std::string& name : names) {
+    if (name.find("fastrtps_port") != std::string::npos) continue;
+    if (name.size() > 3 && name.compare(name.size() - 3, 3, "_el") == 0) continue;
+    if (!unlocked(name)) continue;
+    if (unlink(("/dev/shm/" + name).c_str()) == 0) ++n;
+    unlink(("/dev/shm/" + name + "_el").c_str());
   }
   return n;
 }
@@ -113,24 +164,37 @@ struct FrameHands {
   std::vector<unsigned char> have;
 };
 
+// Exit statuses (also in --help).
+constexpr int kExitFailed = 1;    // the run failed, or --check failed
+constexpr int kExitConfig = 2;    // bad configuration (Cli::fail)
+constexpr int kExitStartup = 3;   // services did not come up
+
+std::string endedHow(const ChildStatus& c) {
+  return c.exited ? "exit code " + std::to_string(c.exit_code) : "signal " + std::to_string(c.term_signal);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   Cli cli("godhand-launch", kSynopsis);
   std::string lab_file = std::string(GODHAND_DEPLOY_DIR) + "/lab/local.pbtxt";
-  std::string recording, scene_file, json_out, bin_dir = exeDir(), log_dir, kill_spec, solver = "exact";
+  std::string recording, scene_file, json_out, bin_dir = exeDir(), log_dir, solver = "exact", source_uri;
+  std::vector<std::string> kill_specs;
   int domain = -1, frames = 0, physics_hz = 240;
   bool lockstep = false, quiet = false, check = false, restart = false, no_physics = false;
-  double speed = 1.0, restart_delay = 0.5, deadline = 0.0, start_timeout = 60.0;
+  double speed = 1.0, restart_delay = 0.5, deadline = 0.0, start_timeout = 60.0, loss_budget = 0.05, silent_after = 1.2,
+         duration = 0.0;
   cli.option("--lab", &lab_file, "FILE", "lab configuration");
   std::string host_name;  // --host: that lab host's services (and profiles) instead of this machine's
   cli.option("--host", &host_name, "NAME", "start the services of the lab's host NAME, with its profiles (default: this machine's)");
   cli.option("--domain", &domain, "N", "DDS domain id 0..232; -1 = the lab's");
   cli.flag("--lockstep", &lockstep, "lock-step: deterministic, every stage waits for each frame's inputs");
   cli.option("--recording", &recording, "FILE", "tracker recording (default: the lab's)");
+  cli.option("--source", &source_uri, "URI", "tracker source for the ingest (godhand-ingest --source), instead of the lab's recording");
+  cli.option("--duration", &duration, "S", "passed to the ingest: a live source runs S seconds (0: the ingest's default)");
   cli.option("--scene", &scene_file, "FILE", "scene file (default: the lab's)");
   cli.option("--frames", &frames, "N", "replay only the first N frames (0: all)");
-  cli.option("--json", &json_out, "OUT", "write the report (godhand-bench's format plus latency) to OUT");
+  cli.option("--json", &json_out, "OUT", "write the report (godhand-bench's format plus latency, delivery, ...) to OUT");
   cli.option("--solver", &solver, "exact|pgs", "NNLS solver of the hand solvers");
   cli.option("--physics-hz", &physics_hz, "HZ", "Bullet's fixed step rate");
   cli.flag("--no-physics", &no_physics, "no Bullet: dynamic objects stay put");
@@ -139,30 +203,40 @@ int main(int argc, char** argv) {
   cli.option("--start-timeout", &start_timeout, "S", "how long the services may take to come up");
   cli.option("--bin-dir", &bin_dir, "DIR", "where the godhand-* executables are (default: next to this one)");
   cli.option("--log-dir", &log_dir, "DIR", "keep the service logs here (default: a fresh directory under /tmp, removed after a clean run)");
-  cli.flag("--restart", &restart, "live: restart a service that dies (after --restart-delay)");
+  cli.flag("--restart", &restart, "live: restart a service that dies or goes silent (after --restart-delay)");
   cli.option("--restart-delay", &restart_delay, "S", "delay before a restart");
-  cli.option("--kill", &kill_spec, "SERVICE@S", "fault drill: SIGKILL SERVICE S seconds into the run (e.g. scene@2)");
-  cli.flag("--check", &check, "exit 1 unless penetration <= margin, joint gap <= 1e-6 m, no solver failure, no frame lost (lock-step)");
+  cli.option("--silent-after", &silent_after, "S", "watchdog: a service without a heartbeat for S seconds is dead (heartbeats every 0.5 s)");
+  cli.multi("--kill", &kill_specs, "SERVICE@WHEN",
+            "fault drill (repeatable): SIGKILL SERVICE, then restart it; WHEN = S or Ss (seconds after the replay's first frame) "
+            "or fN (at tracker frame N), e.g. scene@2, resolver@f120, ingest@1.5s");
+  cli.option("--loss-budget", &loss_budget, "F", "--check (live): lost frames allowed per cluster, as a fraction of the expected frames");
+  cli.flag("--check", &check,
+           "exit 1 unless penetration <= margin, joint gap <= 1e-6 m, no solver failure, lost frames within --loss-budget "
+           "(lock-step: none lost, none stale), every service running at the end, the late joiner served, every drill done");
   cli.flag("--quiet", &quiet, "no per-second lines");
+  cli.epilog("exit status: 0 ok; 1 the run or its --check failed; 2 bad configuration; 3 services did not come up.");
   cli.parse(argc, argv);
   if (frames < 0) cli.fail("--frames must be >= 0");
   if (!(speed >= 0.01 && speed <= 1000.0)) cli.fail("--speed must be in [0.01, 1000]");
   if (!(restart_delay >= 0.0 && restart_delay < 60.0)) cli.fail("--restart-delay must be in [0, 60)");
+  if (!(silent_after >= 0.6 && silent_after <= 60.0)) cli.fail("--silent-after must be in [0.6, 60] s (heartbeats come every 0.5 s)");
   if (!(start_timeout > 0.0 && start_timeout <= 3600.0)) cli.fail("--start-timeout must be in (0, 3600] s");
   if (!(deadline >= 0.0 && deadline <= 3600.0)) cli.fail("--deadline must be in [0, 3600] s");
+  if (!(loss_budget >= 0.0 && loss_budget <= 1.0)) cli.fail("--loss-budget must be in [0, 1]");
+  if (!(duration >= 0.0 && duration <= 86400.0)) cli.fail("--duration must be in [0, 86400] s");
   if (solver != "exact" && solver != "pgs") cli.fail("--solver must be exact or pgs");
   if (physics_hz < 10 || physics_hz > 100000) cli.fail("--physics-hz must be in [10, 100000]");
   if (domain < -1 || domain > 232) cli.fail("--domain must be in 0..232");
-  std::string kill_service;
-  double kill_at = -1.0;
-  if (!kill_spec.empty()) {
-    const size_t at = kill_spec.find('@');
-    char* end = nullptr;
-    if (at == std::string::npos) cli.fail("--kill: expected SERVICE@SECONDS, got '" + kill_spec + "'");
-    kill_service = kill_spec.substr(0, at);
-    kill_at = std::strtod(kill_spec.c_str() + at + 1, &end);
-    if (!end || *end || !(kill_at >= 0.0) || !std::isfinite(kill_at)) cli.fail("--kill: bad time in '" + kill_spec + "'");
+  if (!source_uri.empty() && !recording.empty()) cli.fail("--source and --recording: give one");
+  std::vector<Drill> drills;
+  for (const std::string& k : kill_specs) {
+    try {
+      drills.push_back(parseDrill(k));
+    } catch (const std::exception& e) {
+      cli.fail(e.what());
+    }
   }
+  if (lockstep && !drills.empty()) cli.fail("--kill: fault drills are for live runs (a lock-step run stops at a missing stage)");
   installStopHandlers();
 
   LabConfig lab;
@@ -174,14 +248,22 @@ int main(int argc, char** argv) {
   }
   if (domain >= 0) lab.domain_id = domain;
   if (!recording.empty()) lab.recording = recording;
+  if (!source_uri.empty()) lab.recording = source_uri;
   if (!scene_file.empty()) lab.scene = scene_file;
-  if (lab.recording.empty()) cli.fail("no recording: give --recording or set one in " + lab.file);
-  if (!kill_service.empty() && !lab.service(kill_service)) cli.fail("--kill: no service '" + kill_service + "' in the lab");
-  if (kill_service == "ingest") cli.fail("--kill: the ingest ends the run; kill scene, resolver or solver/NAME");
+  if (lab.recording.empty()) cli.fail("no recording: give --recording or --source, or set one in " + lab.file);
+  for (const Drill& d : drills) {
+    const LabService* s = lab.service(d.service);
+    if (!s) {
+      std::string names;
+      for (const LabService& ls : lab.services) names += (names.empty() ? "" : ", ") + ls.name;
+      cli.fail("--kill '" + d.spec + "': no service '" + d.service + "' in the lab (services: " + names + ")");
+    }
+    if (!runsHere(*s, host_name)) cli.fail("--kill '" + d.spec + "': " + d.service + " runs on " + s->host + ", not started here");
+  }
 
-  // The monitor's inputs: the recording (frame count, rate) and the scene (penetration).
+  // The monitor's inputs: the source (frame count, rate) and the scene (penetration).
   double rate = 0.0;
-  std::int64_t n_frames = 0;
+  std::int64_t n_frames = 0;  // < 0: a live source (frames expected = frames published)
   Scene scene;
   try {
     auto src = bridges::openSource(lab.recording, frames);
@@ -194,6 +276,7 @@ int main(int argc, char** argv) {
   CollisionWorld world(scene);
   const size_t C = lab.clusters.size();
   const double margin = RowParams{}.margin;
+  const double stale_after = lab.stale_after_s;
 
   // Service command lines.
   const bool own_log_dir = log_dir.empty();  // removed again after a clean run
@@ -202,9 +285,11 @@ int main(int argc, char** argv) {
   struct stat st{};
   if (stat(log_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) cli.fail("--log-dir " + log_dir + ": cannot create");
   std::vector<ChildSpec> specs;
+  std::vector<std::string> remote;  // "NAME (on HOST)"
   for (const LabService& s : lab.services) {
     if (!runsHere(s, host_name)) {
       std::printf("launch: %s runs on %s (not started here)\n", s.name.c_str(), s.host.c_str());
+      remote.push_back(s.name + " (on " + s.host + ")");
       continue;
     }
     ChildSpec c;
@@ -221,6 +306,7 @@ int main(int argc, char** argv) {
       case pb::Service::INGEST:
         c.argv.insert(c.argv.end(), {"--source", lab.recording, "--frames", std::to_string(frames), "--speed", fmt17(speed),
                                      "--start-timeout", fmt17(start_timeout)});
+        if (duration > 0) c.argv.insert(c.argv.end(), {"--duration", fmt17(duration)});
         break;
       case pb::Service::SOLVER: c.argv.insert(c.argv.end(), {"--cluster", s.cluster, "--solver", solver}); break;
       case pb::Service::SCENE:
@@ -241,6 +327,11 @@ int main(int argc, char** argv) {
     c.env.push_back({"FASTRTPS_DEFAULT_PROFILES_FILE", dds::Participant::resolveProfiles(lab.profiles)});
     specs.push_back(std::move(c));
   }
+  auto specOf = [&](const std::string& name) -> const ChildSpec* {
+    for (const ChildSpec& s : specs)
+      if (s.name == name) return &s;
+    return nullptr;
+  };
 
   // The monitor subscribes before anything starts.
   std::unique_ptr<dds::Participant> dp;
@@ -266,14 +357,28 @@ int main(int argc, char** argv) {
   }
   const std::set<std::string> shm_before = shmSegments();
 
-  std::printf("launch: lab '%s' (%s), domain %u, %s mode, %zu cluster(s), recording %s (%lld frames at %.2f Hz), scene '%s'\n",
+  std::printf("launch: lab '%s' (%s), domain %u, %s mode, %zu cluster(s), source %s (%s at %.2f Hz), scene '%s'\n",
               lab.name.c_str(), lab.file.c_str(), lab.domain_id, lockstep ? "lock-step" : "live", C, lab.recording.c_str(),
-              static_cast<long long>(n_frames), rate, scene.name.c_str());
+              n_frames >= 0 ? (std::to_string(n_frames) + " frames").c_str() : "live", rate, scene.name.c_str());
   std::printf("launch: service logs in %s\n", log_dir.c_str());
   std::fflush(stdout);
   std::map<std::string, msg::ServiceStatus> status;
   Supervisor sup;
   const Clock::time_point t_start = Clock::now();
+  Watchdog watchdog(silent_after, t_start);
+  std::map<pid_t, std::set<std::string>> shm_of;  // pid -> the shared-memory entries it had open
+  auto noteAllShm = [&] {
+    for (const ChildStatus& c : sup.status())
+      if (c.running) noteShm(c.pid, &shm_of[c.pid]);
+  };
+  auto takeStatus = [&] {
+    msg::ServiceStatus s;
+    while (st_in->take(s)) {
+      const std::string name = s.service().to_string();
+      status[name] = s;
+      watchdog.beat(name, Clock::now());
+    }
+  };
   try {
     for (const ChildSpec& c : specs)
       if (c.name != "ingest") sup.start(c);
@@ -282,95 +387,121 @@ int main(int argc, char** argv) {
     // miss the first frames (a lock-step run of a short recording is over in a second or two).
     const Clock::time_point until = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(start_timeout));
     for (;;) {
-      msg::ServiceStatus s;
-      while (st_in->take(s)) status[s.service().to_string()] = s;
+      takeStatus();
       bool ready = hs_in->matched() >= 1 && ss_in->matched() >= 1;
+      std::vector<std::string> missing;
       for (const LabService& ls : lab.services)
-        if (ls.kind != pb::Service::INGEST) ready = ready && status.count(ls.name) && status[ls.name].state() == "running";
+        if (ls.kind != pb::Service::INGEST && !(status.count(ls.name) && status[ls.name].state() == "running"))
+          missing.push_back(ls.name + (runsHere(ls, host_name) ? "" : " (on " + ls.host + ", not started here)"));
+      ready = ready && missing.empty();
       if (ready) break;
       std::string dead;
-      for (const ChildStatus& c : sup.poll()) dead += " " + c.name;
+      for (const ChildStatus& c : sup.poll()) dead += " " + c.name + " (" + endedHow(c) + ")";
       if (!dead.empty() || stopRequested() || Clock::now() >= until) {
+        std::string names;
+        for (const std::string& m : missing) names += (names.empty() ? "" : ", ") + m;
+        if (names.empty()) names = hs_in->matched() < 1 ? "no HandState writer matched" : "no SceneState writer matched";
         std::string why = !dead.empty() ? "service(s) ended during start-up:" + dead
-                        : stopRequested() ? "stopped during start-up" : "services not running after " + fmt17(start_timeout) + " s";
+                        : stopRequested() ? "stopped during start-up"
+                                          : "services not running after " + fmt17(start_timeout) + " s: " + names;
+        if (specs.empty() && !remote.empty()) why += " (every service of this lab runs on another host; start them there first)";
         for (const ChildSpec& c : specs) why += "\n  " + c.name + ":\n" + tail(c.log_file, 6);
         sup.stop(std::chrono::milliseconds(3000));
-        std::fprintf(stderr, "godhand-launch: %s\n", why.c_str());
-        return stopRequested() ? 0 : 1;
+        std::fprintf(stderr, "godhand-launch: start-up failed: %s\n", why.c_str());
+        hs_in.reset();
+        ss_in.reset();
+        ht_in.reset();
+        st_in.reset();
+        dp.reset();
+        return stopRequested() ? 0 : kExitStartup;
       }
       dp->waitForData(Clock::now() + std::chrono::milliseconds(50));
     }
     for (const ChildSpec& c : specs)
       if (c.name == "ingest") sup.start(c);
+    noteAllShm();
   } catch (const std::exception& e) {
     sup.stop(std::chrono::milliseconds(3000));
-    std::fprintf(stderr, "godhand-launch: %s\n", e.what());
-    return 2;
+    std::fprintf(stderr, "godhand-launch: start-up failed: %s\n", e.what());
+    return kExitStartup;
   }
 
   // Measurements.
+  RunReport rep;
   std::vector<double> latency_us, window_latency;
   std::vector<double> st_contacts, st_assembly, st_solve, st_integrate, st_ccd, st_merge, st_scene;
-  double pen_max = 0, gap_max = 0, free_err_max = 0, kkt_max = 0, window_pen = 0;
+  double window_pen = 0;
   std::vector<double> free_err;
-  long contacts_max = 0, clipped = 0, lifted = 0, inside = 0, failures = 0, inexact = 0, stale = 0, pushouts = 0, states = 0, held = 0;
   std::vector<double> st_total;  // compute time per frame: the stages' own times, no transport
   double last_scene_us = 0;
   ResultHash hash;
   std::map<std::uint64_t, FrameHands> pending;          // lock-step: frame -> hands
   std::map<std::uint64_t, SceneSnapshot> scenes;        // lock-step: frame -> scene
   std::map<std::uint64_t, std::vector<msg::HandTarget>> targets;  // frame -> per cluster
-  std::uint64_t next_frame = 1, last_fresh_frame = 0;
-  double stale_first_s = -1, stale_last_s = -1, resumed_s = -1, killed_s = -1, restarted_s = -1, scene_back_s = -1;
+  std::uint64_t next_frame = 1;
   std::uint64_t last_scene_step = 0;
   std::vector<unsigned char> hand_stale(C, 0);
-  bool killed = false;
+  Delivery delivery(C);
   int exit_code = 0;
   std::string failure;
+  // The replay: its first frame's arrival here is time 0 of every drill and of the report's times.
+  Clock::time_point t_replay{};
+  std::uint64_t replay_run = 0, replay_frame = 0;
+  auto replayS = [&]() { return t_replay == Clock::time_point{} ? -1.0 : secondsSince(t_replay); };
+  std::vector<DrillReport> drill_reports(drills.size());
+  std::vector<unsigned char> drill_fired(drills.size(), 0);
+  std::set<std::string> killed_by_us;  // SIGKILLed by a drill or the watchdog: restart it
+  bool scene_down = false;             // the scene's poses are old (killed, silent, restarting)
+  double unscored_from = -1;
+  bool any_restart = false;
 
   Clock::time_point t_first_state{}, t_last_state{};
   bool run_over = false;  // the ingest is done: held hands re-published after the run are not counted
-  auto measure = [&](const msg::HandState& h, const SceneSnapshot* snap, double lat_us) {
+  auto measure = [&](const msg::HandState& h, const SceneSnapshot* snap, double lat_us, bool stale_rx) {
     if (h.held() && run_over) return;
-    if (!h.held()) {
+    if (!h.held() && !stale_rx) {
       if (t_first_state == Clock::time_point{}) t_first_state = Clock::now();
       t_last_state = Clock::now();
     }
-    ++states;
+    ++rep.states;
     if (snap)
       for (const ObjectMotion& o : snap->objects) world.setObjectPose(o.index, o.X);
     if (lat_us > 0) {
       latency_us.push_back(lat_us);
       window_latency.push_back(lat_us);
     }
-    if (h.stale()) ++stale;
+    if (stale_rx) ++rep.stale_states;
     if (h.held()) {  // the last result again: its figures were counted when it was new
-      ++held;
+      ++rep.held_states;
       return;
     }
     if (!lockstep)
       st_total.push_back(h.solver_times().contacts_us() + h.solver_times().assembly_us() + h.solver_times().solve_us() +
                          h.solver_times().integrate_us() + h.ccd_us() + h.merge_us() + last_scene_us);
-    if (h.toc() < 1.0) ++clipped;
-    if (h.lifted_start()) ++lifted;
-    if (h.started_inside()) ++inside;
-    if (h.flags() & kFlagSolverFailed) ++failures;
-    if (h.flags() & kFlagSolverInexact) ++inexact;
+    if (h.toc() < 1.0) ++rep.clipped;
+    if (h.lifted_start()) ++rep.lifted;
+    if (h.started_inside()) ++rep.inside;
+    if (h.flags() & kFlagSolverFailed) ++rep.solver_failures;
+    if (h.flags() & kFlagSolverInexact) ++rep.inexact;
     if (!h.started()) return;
-    double pen = 0;
-    for (size_t b = 0; b < h.poses().size() && b < h.shapes().size(); ++b) {
-      Shape s;
-      s.type = static_cast<ShapeType>(std::min<int>(h.shapes()[b].type(), 2));
-      s.radius = h.shapes()[b].radius();
-      s.half_length = h.shapes()[b].half_length();
-      s.half_extents = Vec3(h.shapes()[b].half_extents()[0], h.shapes()[b].half_extents()[1], h.shapes()[b].half_extents()[2]);
-      pen = std::max(pen, world.penetration(s, svc::fromWire(h.poses()[b])));
+    if (scene_down) {
+      ++rep.penetration_unscored;  // the scene's last poses are not where its objects are now
+    } else {
+      double pen = 0;
+      for (size_t b = 0; b < h.poses().size() && b < h.shapes().size(); ++b) {
+        Shape s;
+        s.type = static_cast<ShapeType>(std::min<int>(h.shapes()[b].type(), 2));
+        s.radius = h.shapes()[b].radius();
+        s.half_length = h.shapes()[b].half_length();
+        s.half_extents = Vec3(h.shapes()[b].half_extents()[0], h.shapes()[b].half_extents()[1], h.shapes()[b].half_extents()[2]);
+        pen = std::max(pen, world.penetration(s, svc::fromWire(h.poses()[b])));
+      }
+      rep.penetration_max_m = std::max(rep.penetration_max_m, pen);
+      window_pen = std::max(window_pen, pen);
     }
-    pen_max = std::max(pen_max, pen);
-    window_pen = std::max(window_pen, pen);
-    gap_max = std::max(gap_max, h.joint_gap());
+    rep.joint_gap_max_m = std::max(rep.joint_gap_max_m, h.joint_gap());
     if (h.tracked()) {
-      kkt_max = std::max(kkt_max, h.kkt());
+      rep.kkt_max = std::max(rep.kkt_max, h.kkt());
       if (!h.loaded()) {  // free space: the distance to the tracked targets
         auto it = targets.find(h.stamp().frame());
         if (it != targets.end() && h.hand() < it->second.size()) {
@@ -381,40 +512,64 @@ int main(int argc, char** argv) {
               if (b < t.driven().size() && t.driven()[b])
                 e = std::max(e, (svc::fromWire(h.poses()[b]).p - svc::fromWire(t.targets()[b]).p).norm());
             free_err.push_back(e);
-            free_err_max = std::max(free_err_max, e);
+            rep.free_err_max_m = std::max(rep.free_err_max_m, e);
           }
         }
       }
     }
   };
+  auto setSceneDown = [&](bool down) {
+    if (down == scene_down) return;
+    scene_down = down;
+    if (down) unscored_from = replayS();
+    else rep.unscored_windows.push_back({unscored_from, replayS()});
+  };
   auto drain = [&] {
-    msg::ServiceStatus s;
-    while (st_in->take(s)) status[s.service().to_string()] = s;
+    takeStatus();
     msg::HandTarget t;
-    while (ht_in->take(t))
+    while (ht_in->take(t)) {
+      delivery.published(t.stamp().run(), t.stamp().frame());
+      if (t.stamp().frame() > 0) {
+        if (t_replay == Clock::time_point{}) t_replay = Clock::now();
+        if (t.stamp().run() != replay_run) {  // a (re)started ingest: its frames count from 1 again
+          if (replay_run == 0 || t.stamp().source_time_ns() > 0) {
+            replay_run = t.stamp().run();
+            replay_frame = 0;
+          }
+        }
+        if (t.stamp().run() == replay_run) replay_frame = std::max<std::uint64_t>(replay_frame, t.stamp().frame());
+      }
       if (t.hand() < C) {
         auto& v = targets[t.stamp().frame()];
         v.resize(C);
         v[t.hand()] = t;
       }
+    }
     while (targets.size() > 512) targets.erase(targets.begin());
     msg::SceneState ss;
     std::string why;
     while (ss_in->take(ss)) {
       SceneSnapshot snap;
       if (!svc::fromWire(ss, static_cast<int>(scene.objects.size()), &snap, &why)) continue;
-      pushouts += snap.pushouts;
+      rep.pushouts += snap.pushouts;
       last_scene_us = snap.step_us;
-      if (restarted_s >= 0 && scene_back_s < 0 && snap.step < last_scene_step) scene_back_s = secondsSince(t_start);
+      if (any_restart && rep.scene_back_s < 0 && snap.step < last_scene_step) rep.scene_back_s = replayS();
       last_scene_step = snap.step;
       if (lockstep) scenes[snap.frame] = snap;
       else
         for (const ObjectMotion& o : snap.objects) world.setObjectPose(o.index, o.X);
+      const ChildStatus* sc = sup.find("scene");
+      if (!sc || sc->running) setSceneDown(false);  // a state of the running scene: its poses are current
     }
     msg::HandState h;
     while (hs_in->take(h)) {
       const double lat = h.stamp().source_time_ns() > 0 ? static_cast<double>(svc::nowNs() - h.stamp().source_time_ns()) * 1e-3 : 0.0;
       if (h.hand() >= C) continue;
+      // Stale whatever the cause: flagged by the resolver, or older than the stale limit here.
+      const bool too_old = h.stamp().source_time_ns() > 0 && lat * 1e-6 > stale_after;
+      const bool stale_rx = h.stale() || too_old;
+      if (too_old && !h.stale() && !(h.held() && run_over)) ++rep.old_unmarked;
+      delivery.add(h.hand(), h.stamp().run(), h.stamp().frame(), stale_rx);
       if (lockstep) {
         FrameHands& f = pending[h.stamp().frame()];
         f.states.resize(C);
@@ -426,18 +581,17 @@ int main(int argc, char** argv) {
           window_latency.push_back(lat);
         }
       } else {
-        measure(h, nullptr, lat);
-        const double now_s = secondsSince(t_start);
-        hand_stale[h.hand()] = h.stale();
+        measure(h, nullptr, lat, stale_rx);
+        const double now_s = replayS();
+        hand_stale[h.hand()] = stale_rx;
         bool any_stale = false;
         for (unsigned char st_h : hand_stale) any_stale = any_stale || st_h;
-        if (h.stale()) {
-          if (stale_first_s < 0) stale_first_s = now_s;
-          stale_last_s = now_s;
-        } else {
-          // Resumed: after the restart, every hand's newest state is fresh again.
-          if (stale_last_s >= 0 && resumed_s < 0 && restarted_s >= 0 && !any_stale) resumed_s = now_s;
-          last_fresh_frame = std::max<std::uint64_t>(last_fresh_frame, h.stamp().frame());
+        if (now_s < 0 || h.stamp().frame() == 0) continue;  // start-up is not a stale window
+        if (stale_rx) {
+          if (rep.stale_first_s < 0) rep.stale_first_s = now_s;
+          rep.stale_last_s = now_s;
+        } else if (rep.stale_last_s >= 0 && rep.resumed_s < 0 && any_restart && !any_stale) {
+          rep.resumed_s = now_s;  // resumed: after a restart, every hand's newest state is fresh again
         }
       }
     }
@@ -452,7 +606,7 @@ int main(int argc, char** argv) {
       double contacts = 0, c_us = 0, a_us = 0, s_us = 0, i_us = 0, ccd = 0, merge = 0;
       for (size_t c = 0; c < C; ++c) {
         const msg::HandState& hsc = it->second.states[c];
-        measure(hsc, c == 0 ? &snap : nullptr, 0.0);
+        measure(hsc, c == 0 ? &snap : nullptr, 0.0, hsc.stale());
         contacts += hsc.contacts();
         c_us += hsc.solver_times().contacts_us();
         a_us += hsc.solver_times().assembly_us();
@@ -463,7 +617,7 @@ int main(int argc, char** argv) {
         if (hsc.started())
           for (const msg::Pose& p : hsc.poses()) hash.add(svc::fromWire(p));
       }
-      contacts_max = std::max(contacts_max, static_cast<long>(contacts));
+      rep.contacts_max = std::max(rep.contacts_max, static_cast<long>(contacts));
       st_contacts.push_back(c_us);
       st_assembly.push_back(a_us);
       st_solve.push_back(s_us);
@@ -480,58 +634,84 @@ int main(int argc, char** argv) {
   };
 
   // Run until the ingest is done (or a failure, or a stop signal).
-  Clock::time_point last_print = Clock::now();
+  Clock::time_point last_print = Clock::now(), last_shm_scan = Clock::now();
   bool ingest_done = false;
   std::map<std::string, Clock::time_point> restarts;  // service -> when to restart it
+  auto restartLater = [&](const std::string& name, const std::string& why) {
+    std::printf("launch: %s %s; restarting in %.1f s\n", name.c_str(), why.c_str(), restart_delay);
+    restarts[name] = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(restart_delay));
+    if (name == "scene") setSceneDown(true);
+  };
   while (!stopRequested()) {
     dp->waitForData(Clock::now() + std::chrono::milliseconds(20));
     drain();
+    if (secondsSince(last_shm_scan) >= 1.0) {
+      noteAllShm();
+      last_shm_scan = Clock::now();
+    }
     for (const ChildStatus& c : sup.poll()) {
-      if (c.name == "ingest") {
+      watchdog.reset(c.name, Clock::now());  // ended: not running (shown DOWN), no longer silent
+      if (c.name == "ingest" && c.exited && c.exit_code == 0) {
         ingest_done = true;
-        if (!c.exited || c.exit_code != 0) {
-          failure = "ingest ended with " + (c.exited ? "exit code " + std::to_string(c.exit_code) : "signal " + std::to_string(c.term_signal));
-          const ChildSpec* sp = nullptr;
-          for (const ChildSpec& s : specs)
-            if (s.name == c.name) sp = &s;
-          if (sp) failure += "\n" + tail(sp->log_file, 12);
-        }
         continue;
       }
-      const bool drill = killed && c.name == kill_service && c.term_signal == SIGKILL;
-      if ((restart || drill) && !lockstep) {
-        std::printf("launch: %s ended (%s); restarting in %.1f s\n", c.name.c_str(),
-                    c.exited ? ("exit " + std::to_string(c.exit_code)).c_str() : ("signal " + std::to_string(c.term_signal)).c_str(),
-                    restart_delay);
-        restarts[c.name] = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(restart_delay));
+      const bool ours = killed_by_us.erase(c.name) > 0 && c.term_signal == SIGKILL;
+      if (c.name == "scene") setSceneDown(true);
+      if ((restart || ours) && !lockstep) {
+        restartLater(c.name, "ended (" + endedHow(c) + (ours ? ", killed by this launcher" : "") + ")");
       } else if (failure.empty()) {
-        failure = c.name + " ended unexpectedly (" + (c.exited ? "exit code " + std::to_string(c.exit_code) : "signal " + std::to_string(c.term_signal)) + ")";
-        for (const ChildSpec& s : specs)
-          if (s.name == c.name) failure += "\n" + tail(s.log_file, 12);
+        failure = c.name + " ended unexpectedly (" + endedHow(c) + ")";
+        if (const ChildSpec* sp = specOf(c.name)) failure += "\n" + tail(sp->log_file, 12);
       }
     }
     if (!failure.empty()) break;
+    // The watchdog: a service without a heartbeat for silent_after is dead, whatever the reason.
+    for (const std::string& name : watchdog.update(Clock::now())) {
+      std::printf("launch: watchdog: %s silent (no heartbeat for %.1f s)%s\n", name.c_str(), watchdog.silentFor(name, Clock::now()),
+                  restart && !lockstep && specOf(name) ? ": killing it for a restart" : "");
+      if (name == "scene") setSceneDown(true);
+      if (restart && !lockstep && specOf(name) && sup.signal(name, SIGKILL)) {
+        killed_by_us.insert(name);
+        rep.watchdog_restarts.push_back(name);
+      }
+    }
     for (auto it = restarts.begin(); it != restarts.end();) {
       if (Clock::now() < it->second) {
         ++it;
         continue;
       }
-      sup.restart(it->first);
-      restarted_s = secondsSince(t_start);
-      std::printf("launch: %s restarted at %.2f s\n", it->first.c_str(), restarted_s);
+      try {
+        sup.restart(it->first);
+      } catch (const std::exception& e) {
+        failure = std::string("restart failed: ") + e.what();
+        break;
+      }
+      watchdog.reset(it->first, Clock::now());
+      any_restart = true;
+      for (size_t i = 0; i < drills.size(); ++i)
+        if (drill_fired[i] && drills[i].service == it->first && drill_reports[i].restarted_s < 0) drill_reports[i].restarted_s = replayS();
+      std::printf("launch: %s restarted at %.2f s after the replay start\n", it->first.c_str(), replayS());
       it = restarts.erase(it);
     }
-    if (kill_at >= 0 && !killed && secondsSince(t_start) >= kill_at && states > 0) {
-      sup.signal(kill_service, SIGKILL);
-      killed = true;
-      killed_s = secondsSince(t_start);
-      std::printf("launch: fault drill: SIGKILL %s at %.2f s\n", kill_service.c_str(), killed_s);
+    if (!failure.empty()) break;
+    for (size_t i = 0; i < drills.size(); ++i) {
+      if (drill_fired[i] || !drills[i].due(replayS(), replay_frame)) continue;
+      const ChildStatus* c = sup.find(drills[i].service);
+      if (!c || !c->running) continue;  // down already (a previous drill): fires once it runs again
+      noteShm(c->pid, &shm_of[c->pid]);
+      if (!sup.signal(drills[i].service, SIGKILL)) continue;
+      drill_fired[i] = 1;
+      killed_by_us.insert(drills[i].service);
+      drill_reports[i] = {drills[i].spec, drills[i].service, replayS(), -1.0, replay_frame};
+      if (drills[i].service == "scene") setSceneDown(true);
+      std::printf("launch: fault drill %s: SIGKILL %s at %.2f s after the replay start (frame %llu)\n", drills[i].spec.c_str(),
+                  drills[i].service.c_str(), replayS(), static_cast<unsigned long long>(replay_frame));
     }
     if (ingest_done) {
       run_over = true;
       // Let the last states arrive (lock-step: until every frame is in, bounded).
       const Clock::time_point until = Clock::now() + std::chrono::seconds(lockstep ? 5 : 1);
-      while (Clock::now() < until && (!lockstep || next_frame <= static_cast<std::uint64_t>(n_frames))) {
+      while (Clock::now() < until && (!lockstep || n_frames < 0 || next_frame <= static_cast<std::uint64_t>(n_frames))) {
         dp->waitForData(Clock::now() + std::chrono::milliseconds(20));
         drain();
       }
@@ -542,19 +722,31 @@ int main(int argc, char** argv) {
       last_print = Clock::now();
       std::string rates;
       for (const auto& s : status) {
-        char b[96];
-        std::snprintf(b, sizeof b, "%s%s %.0f Hz", rates.empty() ? "" : ", ", s.first.c_str(), s.second.rate_hz());
+        char b[160];
+        const Watchdog::Health hl = watchdog.health(s.first);
+        const ChildStatus* c = sup.find(s.first);
+        if (c && !c->running)
+          std::snprintf(b, sizeof b, "%s%s DOWN", rates.empty() ? "" : ", ", s.first.c_str());
+        else if (hl == Watchdog::Health::Silent)
+          std::snprintf(b, sizeof b, "%s%s DEAD (silent %.1f s)", rates.empty() ? "" : ", ", s.first.c_str(),
+                        watchdog.silentFor(s.first, Clock::now()));
+        else
+          std::snprintf(b, sizeof b, "%s%s %.0f Hz %s", rates.empty() ? "" : ", ", s.first.c_str(), s.second.rate_hz(),
+                        hl == Watchdog::Health::Unknown ? "starting" : s.second.state().c_str());
         rates += b;
       }
-      std::printf("launch: t %5.1f s | %s | latency median %.0f us p99 %.0f us | penetration %.4f mm | states %ld stale %ld\n",
-                  secondsSince(t_start), rates.c_str(), percentile(window_latency, 0.5), percentile(window_latency, 0.99),
-                  window_pen * 1e3, states, stale);
+      char pen_text[48];
+      std::snprintf(pen_text, sizeof pen_text, "%.4f mm", window_pen * 1e3);
+      std::printf("launch: t %5.1f s | %s | latency median %.0f us p99 %.0f us | penetration %s | states %ld stale %ld\n",
+                  replayS() < 0 ? 0.0 : replayS(), rates.c_str(), percentile(window_latency, 0.5), percentile(window_latency, 0.99),
+                  scene_down ? "not scored (scene down)" : pen_text, rep.states,
+                  rep.stale_states);
       std::fflush(stdout);
       window_latency.clear();
       window_pen = 0;
     }
   }
-  const double run_s = secondsSince(t_start);
+  rep.run_s = secondsSince(t_start);
 
   // The services' last heartbeats (period 0.5 s) carry their final counters.
   if (failure.empty() && !stopRequested()) {
@@ -564,11 +756,36 @@ int main(int argc, char** argv) {
       drain();
     }
   }
+  if (scene_down) rep.unscored_windows.push_back({unscored_from, -1.0});
+  // Who is not running at the end (the ingest is done when it exited 0).
+  watchdog.update(Clock::now());
+  for (const ChildStatus& c : sup.poll())
+    if (!(c.name == "ingest" && c.exited && c.exit_code == 0) && failure.empty())
+      failure = c.name + " ended at the end of the run (" + endedHow(c) + ")";
+  for (const LabService& ls : lab.services) {
+    const ChildStatus* c = sup.find(ls.name);
+    if (ls.kind == pb::Service::INGEST && c && c->exited && c->exit_code == 0) continue;
+    if (ls.kind == pb::Service::INGEST && !c) continue;  // remote ingest: its end is its own
+    if ((c && !c->running) || watchdog.health(ls.name) != Watchdog::Health::Alive) rep.dead_at_end.push_back(ls.name);
+  }
+  for (const auto& s : status) {
+    ServiceFigures& f = rep.services[s.first];
+    f.frame = s.second.frame();
+    f.samples_in = s.second.samples_in();
+    f.samples_out = s.second.samples_out();
+    f.rejected = s.second.rejected();
+    f.late = s.second.late();
+    f.deadline_misses = s.second.deadline_misses();
+    f.latency_median_us = s.second.latency_median_us();
+    f.rate_hz = s.second.rate_hz();
+    f.state = s.second.state().to_string();
+    const ChildStatus* c = sup.find(s.first);
+    const Watchdog::Health hl = watchdog.health(s.first);
+    f.health = c && !c->running ? (c->exited && c->exit_code == 0 ? "finished" : "not running")
+               : hl == Watchdog::Health::Alive ? "alive" : hl == Watchdog::Health::Silent ? "silent" : "unknown";
+  }
 
   // Late joiner: a fresh participant must get every cluster's last HandState and the scene.
-  double late_ms = -1;
-  size_t late_states = 0;
-  bool late_description = false;
   if (failure.empty() && !stopRequested()) {
     try {
       dds::Participant late(dds::Options{static_cast<int>(lab.domain_id), lab.profiles, dds::profile::kParticipant, "launch/late-joiner"});
@@ -578,147 +795,139 @@ int main(int argc, char** argv) {
       std::set<std::uint32_t> got;
       msg::HandState h;
       msg::SceneDescription d;
-      while (secondsSince(t0) < 5.0 && (got.size() < C || !late_description)) {
+      while (secondsSince(t0) < 5.0 && (got.size() < C || !rep.late_description)) {
         late.waitForData(Clock::now() + std::chrono::milliseconds(50));
         while (lh.take(h)) got.insert(h.hand());
-        while (ld.take(d)) late_description = d.objects().size() == scene.objects.size();
+        while (ld.take(d)) rep.late_description = d.objects().size() == scene.objects.size();
       }
-      late_states = got.size();
-      if (got.size() == C && late_description) late_ms = secondsSince(t0) * 1e3;
+      rep.late_states = got.size();
+      if (got.size() == C && rep.late_description) rep.late_ms = secondsSince(t0) * 1e3;
     } catch (const std::exception& e) {
       std::fprintf(stderr, "launch: late joiner: %s\n", e.what());
     }
   }
 
   // Stop everything, check nothing is left behind.
+  noteAllShm();
   sup.stop(std::chrono::milliseconds(5000));
-  std::string exits;
-  bool clean_exits = true;
+  rep.clean_shutdown = true;
   for (const ChildStatus& c : sup.status()) {
     const bool ok = (c.exited && c.exit_code == 0) || (!c.exited && c.term_signal == SIGTERM);
-    if (!ok) clean_exits = false;
-    exits += " " + c.name + (c.exited ? "=" + std::to_string(c.exit_code) : "=sig" + std::to_string(c.term_signal));
+    if (!ok) rep.clean_shutdown = false;
+    rep.exits += " " + c.name + (c.exited ? "=" + std::to_string(c.exit_code) : "=sig" + std::to_string(c.term_signal));
   }
   hs_in.reset();
   ss_in.reset();
   ht_in.reset();
   st_in.reset();
   dp.reset();
-  size_t shm_killed = 0;
-  if (killed) {  // the killed process could not release its segments: count them, then clean up
-    shm_killed = orphaned(shm_before);
-    if (std::system("fastdds shm clean >/dev/null 2>&1") != 0) std::fprintf(stderr, "launch: fastdds shm clean failed\n");
-  }
-  const size_t shm_left = orphaned(shm_before);
+  // Entries left by this launcher's own dead processes (a SIGKILL leaves them): removed by name.
+  for (const auto& [pid, names] : shm_of) rep.shm_removed += removeOwnShm(names);
+  rep.shm_left = orphaned(shm_before);
 
-  // Summary.
-  const std::uint64_t frames_done = lockstep ? next_frame - 1 : last_fresh_frame;
-  const double lat_med = percentile(latency_us, 0.5), lat_p99 = percentile(latency_us, 0.99);
-  // Frames per second from the first to the last HandState received (startup excluded).
-  const double span_s = std::chrono::duration<double>(t_last_state - t_first_state).count();
-  const double fps = frames_done > 1 && span_s > 0 ? static_cast<double>(frames_done - 1) / span_s : 0.0;
-  std::printf("launch: %s run of %.1f s: %llu of %lld frames %s, %ld hand states received (%ld stale)\n",
-              lockstep ? "lock-step" : "live", run_s, static_cast<unsigned long long>(frames_done),
-              static_cast<long long>(n_frames), lockstep ? "complete" : "seen fresh", states, stale);
-  std::printf("  end-to-end latency (tracker sample -> HandState here): median %.0f us, p99 %.0f us, max %.0f us; %.1f frames/s\n",
-              lat_med, lat_p99, percentile(latency_us, 1.0), fps);
-  for (const auto& s : status)
-    std::printf("  %-14s frame %llu, source->output %.0f us, in %llu, out %llu, rejected %llu, late %llu, deadline misses %llu, state %s\n",
-                s.first.c_str(), static_cast<unsigned long long>(s.second.frame()), s.second.latency_median_us(),
-                static_cast<unsigned long long>(s.second.samples_in()), static_cast<unsigned long long>(s.second.samples_out()),
-                static_cast<unsigned long long>(s.second.rejected()), static_cast<unsigned long long>(s.second.late()),
-                static_cast<unsigned long long>(s.second.deadline_misses()), s.second.state().c_str());
-  std::printf("  penetration max %.4f mm (margin %.3f mm), joint gap max %.2e m, free tracking error max %.2f mm, clipped %ld, scene push-outs %ld\n",
-              pen_max * 1e3, margin * 1e3, gap_max, free_err_max * 1e3, clipped, pushouts);
-  if (killed)
-    std::printf("  fault drill: %s killed at %.2f s, restarted at %.2f s, stale from %.2f to %.2f s, fresh again at %.2f s (every hand; %.2f s after the restart; a restarted scene's first state seen at %.2f s)\n",
-                kill_service.c_str(), killed_s, restarted_s, stale_first_s, stale_last_s, resumed_s,
-                resumed_s >= 0 && restarted_s >= 0 ? resumed_s - restarted_s : -1.0, scene_back_s);
-  std::printf("  late joiner: %zu of %zu HandStates and the SceneDescription %s%s\n", late_states, C,
-              late_description ? "received" : "NOT received",
-              late_ms >= 0 ? (" in " + std::to_string(static_cast<int>(late_ms)) + " ms").c_str() : "");
-  std::printf("  shutdown:%s; shared-memory segments left: %zu%s\n", exits.c_str(), shm_left,
-              killed ? (" (" + std::to_string(shm_killed) + " orphaned by the killed process, removed with fastdds shm clean)").c_str() : "");
-  if (lockstep) std::printf("  result hash %016llx\n", static_cast<unsigned long long>(hash.h));
-  if (!failure.empty()) std::printf("launch: FAILED: %s\n", failure.c_str());
+  // The report.
+  rep.recording = lab.recording;
+  rep.scene = scene.name;
+  rep.solver = solver;
+  rep.mode = lockstep ? "lockstep" : "live";
+  rep.lockstep = lockstep;
+  rep.hands = C;
+  rep.triangles = scene.god_triangles;
+  rep.reference_triangles = scene.reference_triangles;
+  rep.frame_rate_hz = rate;
+  rep.physics_hz = no_physics ? 0 : physics_hz;
+  rep.stale_after_s = stale_after;
+  rep.silent_after_s = silent_after;
+  // Frames expected: the replay's frames for the last ingest run (it went to the end), and for a
+  // run cut short by a kill the frames it published; a live source: the frames published.
+  std::map<std::uint64_t, std::uint64_t> expected;
+  const std::vector<std::uint64_t>& runs = delivery.runs();
+  for (size_t i = 0; i < runs.size(); ++i) {
+    const bool last = i + 1 == runs.size();
+    expected[runs[i]] = last && n_frames >= 0 ? static_cast<std::uint64_t>(n_frames) : delivery.highest(runs[i]);
+  }
+  if (runs.empty() && n_frames > 0) expected[0] = static_cast<std::uint64_t>(n_frames);  // nothing came at all: all lost
+  rep.ingest_runs = runs.size();
+  std::uint64_t min_fresh = ~0ull;
+  for (size_t c = 0; c < C; ++c) {
+    rep.clusters.push_back(lab.clusters[c].name);
+    rep.delivery.push_back(delivery.counts(c, expected));
+    min_fresh = std::min(min_fresh, rep.delivery.back().fresh);
+    rep.expected_frames = rep.delivery.back().expected;
+  }
+  if (C == 0) min_fresh = 0;
+  rep.frames_complete = lockstep ? next_frame - 1 : min_fresh;
+  rep.replay_span_s = std::chrono::duration<double>(t_last_state - t_first_state).count();
+  // Frames per second from counts: fresh frames (every cluster) over first to last fresh state.
+  rep.frames_per_s = rep.frames_complete > 1 && rep.replay_span_s > 0 ? static_cast<double>(rep.frames_complete - 1) / rep.replay_span_s : 0.0;
+  rep.latency_median_us = percentile(latency_us, 0.5);
+  rep.latency_p99_us = percentile(latency_us, 0.99);
+  rep.latency_max_us = percentile(latency_us, 1.0);
+  rep.latency_samples = latency_us.size();
+  // step_us as godhand-bench means it: the compute time of a frame (the stages' own times, every
+  // hand, the scene), without the transport; the end-to-end figure is latency_us.
+  rep.step_median_us = percentile(st_total, 0.5);
+  rep.step_p99_us = percentile(st_total, 0.99);
+  rep.step_max_us = percentile(st_total, 1.0);
+  rep.stages_us = {{"contacts", percentile(st_contacts, 0.5)}, {"assembly", percentile(st_assembly, 0.5)},
+                   {"solve", percentile(st_solve, 0.5)},       {"integrate", percentile(st_integrate, 0.5)},
+                   {"ccd", percentile(st_ccd, 0.5)},           {"merge", percentile(st_merge, 0.5)},
+                   {"scene", percentile(st_scene, 0.5)}};
+  rep.margin_m = margin;
+  rep.free_err_median_m = percentile(free_err, 0.5);
+  rep.silent = watchdog.episodes();
+  for (Watchdog::Episode& e : rep.silent) {  // times from the replay start, as every other time
+    const double off = t_replay == Clock::time_point{} ? 0.0 : std::chrono::duration<double>(t_replay - t_start).count();
+    e.start_s -= off;
+    if (e.end_s >= 0) e.end_s -= off;
+  }
+  rep.drills = drill_reports;
+  for (size_t i = 0; i < drills.size(); ++i)
+    if (!drill_fired[i]) rep.drills[i] = {drills[i].spec, drills[i].service, -1.0, -1.0, 0};
+  rep.late_ms = rep.late_ms;
+  rep.failure = failure;
+  rep.have_hash = lockstep;
+  rep.result_hash = hash.h;
+  rep.checked = check;
+  rep.loss_budget = loss_budget;
+  if (check) {
+    RunFigures f;
+    f.lockstep = lockstep;
+    f.loss_budget = loss_budget;
+    for (size_t c = 0; c < C; ++c) f.delivery[rep.clusters[c]] = rep.delivery[c];
+    f.dead_at_end = rep.dead_at_end;
+    f.late_joiner_ok = rep.late_states == C && rep.late_description;
+    for (size_t i = 0; i < drills.size(); ++i)
+      if (!drill_fired[i]) f.drills_not_done.push_back(drills[i].spec);
+    f.failure = failure;
+    f.penetration_max = rep.penetration_max_m;
+    f.margin = margin;
+    f.joint_gap_max = rep.joint_gap_max_m;
+    f.solver_failures = rep.solver_failures;
+    f.states = rep.states;
+    rep.verdict = evaluateRun(f);
+  }
+  printSummary(rep);
 
   if (!json_out.empty()) {
-    nlohmann::json j;
-    j["recording"] = lab.recording;
-    j["scene"] = scene.name;
-    j["frames"] = frames_done;
-    j["hands"] = C;
-    j["triangles"] = scene.god_triangles;
-    j["reference_triangles"] = scene.reference_triangles;
-    j["frame_rate_hz"] = rate;
-    j["solver"] = solver;
-    j["physics_hz"] = no_physics ? 0 : physics_hz;
-    j["mode"] = lockstep ? "lockstep" : "live";
-    // step_us as godhand-bench means it: the compute time of a frame (the stages' own times, every
-    // hand, the scene), without the transport; the end-to-end figure is latency_us.
-    const double step_med = percentile(st_total, 0.5);
-    j["step_us"] = {{"median", step_med}, {"p99", percentile(st_total, 0.99)}, {"max", percentile(st_total, 1.0)}};
-    j["hz_median"] = step_med > 0 ? 1e6 / step_med : 0.0;
-    j["held_states"] = held;
-    j["latency_us"] = {{"median", lat_med}, {"p99", lat_p99}, {"max", percentile(latency_us, 1.0)}, {"samples", latency_us.size()}};
-    j["run_s"] = run_s;
-  j["frames_per_s"] = fps;
-    j["stages_us"] = {{"contacts", percentile(st_contacts, 0.5)}, {"assembly", percentile(st_assembly, 0.5)},
-                      {"solve", percentile(st_solve, 0.5)},       {"integrate", percentile(st_integrate, 0.5)},
-                      {"ccd", percentile(st_ccd, 0.5)},           {"merge", percentile(st_merge, 0.5)},
-                      {"scene", percentile(st_scene, 0.5)}};
-    j["penetration_max_m"] = pen_max;
-    j["margin_m"] = margin;
-    j["joint_gap_max_m"] = gap_max;
-    j["free_tracking_error_max_m"] = free_err_max;
-    j["free_tracking_error_median_m"] = percentile(free_err, 0.5);
-    j["contacts_max"] = contacts_max;
-    j["kkt_residual_max"] = kkt_max;
-    j["solver_failures"] = failures;
-    j["inexact_solves"] = inexact;
-    j["clipped_steps"] = clipped;
-    j["lifted_starts"] = lifted;
-    j["started_inside"] = inside;
-    j["scene_pushouts"] = pushouts;
-    j["hand_states"] = states;
-    j["stale_states"] = stale;
-    nlohmann::json services = nlohmann::json::object();
-    for (const auto& s : status)
-      services[s.first] = {{"frame", s.second.frame()}, {"samples_in", s.second.samples_in()}, {"samples_out", s.second.samples_out()},
-                           {"rejected", s.second.rejected()}, {"late", s.second.late()}, {"deadline_misses", s.second.deadline_misses()}};
-    j["services"] = services;
-    j["late_joiner"] = {{"hand_states", late_states}, {"scene_description", late_description}, {"ms", late_ms}};
-    j["shm_segments_left"] = shm_left;
-  j["shm_segments_orphaned_by_kill"] = shm_killed;
-    j["clean_shutdown"] = clean_exits;
-    if (killed)
-      j["fault_drill"] = {{"service", kill_service}, {"killed_s", killed_s}, {"restarted_s", restarted_s}, {"stale_first_s", stale_first_s},
-                          {"stale_last_s", stale_last_s}, {"resumed_s", resumed_s}, {"scene_back_s", scene_back_s},
-                          {"resume_after_restart_s", resumed_s >= 0 && restarted_s >= 0 ? resumed_s - restarted_s : -1.0}};
-    if (lockstep) {
-      char hex[32];
-      std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash.h));
-      j["result_hash"] = hex;
-    }
-    j["failure"] = failure;
     std::ofstream out(json_out);
-    out << j.dump(2) << "\n";
+    out << reportJson(rep).dump(2) << "\n";
     if (!out) {
       std::fprintf(stderr, "godhand-launch: %s: cannot write\n", json_out.c_str());
-      return 2;
+      return kExitConfig;
     }
   }
-  if (!failure.empty()) exit_code = 1;
-  if (own_log_dir && failure.empty() && clean_exits) {
+  if (!failure.empty()) exit_code = kExitFailed;
+  if (own_log_dir && failure.empty() && rep.clean_shutdown) {
     for (const ChildSpec& c : specs) std::remove(c.log_file.c_str());
     rmdir(log_dir.c_str());
   }
   if (check) {
-    const bool frames_ok = !lockstep || frames_done == static_cast<std::uint64_t>(n_frames);
-    const bool ok = failure.empty() && pen_max <= margin && gap_max <= 1e-6 && failures == 0 && frames_ok && states > 0;
-    std::printf("check: %s (penetration <= %.1e m, joint gap <= 1e-6 m, no solver failures%s)\n", ok ? "ok" : "FAILED", margin,
-                lockstep ? ", every frame" : "");
-    if (!ok) exit_code = 1;
+    std::printf("check: %s (penetration <= %.1e m, joint gap <= 1e-6 m, no solver failures, %s, every service running at the end, late joiner served)\n",
+                rep.verdict.ok ? "ok" : "FAILED", margin,
+                lockstep ? "every frame fresh" : ("lost frames <= " + fmt17(loss_budget * 100) + " % per cluster").c_str());
+    for (const std::string& why : rep.verdict.reasons) std::printf("check:   %s\n", why.c_str());
+    if (!rep.verdict.ok) exit_code = kExitFailed;
   }
   return exit_code;
 }

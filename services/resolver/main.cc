@@ -240,7 +240,13 @@ int main(int argc, char** argv) {
       if (s->have[h] && s->stamp[h].source_time_ns() >= stamp.source_time_ns()) stamp = s->stamp[h];
     for (size_t h = 0; h < C; ++h) {
       const HandResult& r = resolver->result(static_cast<int>(h));
-      svc::toWire(r, models[h], scene_stale || !s->have[h], &out);
+      // Stale whatever the cause: the scene is old, the cluster is held, or its tracker sample is
+      // older than the stale limit (a stage was frozen and its backlog arrives late).
+      const msg::Stamp& src = s->have[h] ? s->stamp[h] : stamp;
+      const bool too_old = !service.lockstep() && src.source_time_ns() > 0 &&
+                           static_cast<double>(svc::nowNs() - src.source_time_ns()) * 1e-9 > stale_after;
+      if (too_old && s->have[h]) ++service.late;
+      svc::toWire(r, models[h], scene_stale || !s->have[h] || too_old, &out);
       out.hand(static_cast<std::uint32_t>(h));
       out.cluster(lab.clusters[h].name);
       out.stamp() = svc::derivedStamp(s->have[h] ? s->stamp[h] : stamp);

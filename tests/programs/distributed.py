@@ -6,8 +6,12 @@ participants on the shipped loopback profile) in its own DDS domain, bounds ever
 that nothing is left behind: no process of its domain, no new shared-memory segment.
 
 usage: distributed.py CASE BIN_DIR DEPLOY_DIR DOMAIN [args]
-cases: same-hash RECORDING | live RECORDING | kill SERVICE RECORDING | rejects | loopback RECORDING
+cases: same-hash RECORDING | live RECORDING | kill SERVICE RECORDING | rejects | loopback RECORDING |
+       drills RECORDING | freeze SERVICE RECORDING | freeze-restart SERVICE RECORDING | startup-remote |
+       lockstep-fail RECORDING
 """
+import re
+import signal
 import json
 import os
 import shutil
@@ -63,6 +67,18 @@ def common_checks(j):
           f"a late-joining subscriber got every cluster's HandState and the SceneDescription ({lj})")
 
 
+def delivery_checks(j):
+    """Delivery is counted per cluster; the counts add up and the summary's frames are counts."""
+    d = j.get("delivery", {})
+    check(len(d) == j.get("hands"), f"delivery counted for every cluster ({sorted(d)})")
+    for name, c in d.items():
+        check(c["fresh"] + c["stale"] + c["lost"] == c["expected"] and c["expected"] > 0,
+              f"{name}: expected {c['expected']} = fresh {c['fresh']} + stale {c['stale']} + lost {c['lost']}")
+    if d:
+        check(j.get("frames") == min(c["fresh"] for c in d.values()),
+              f"'frames' is the count of frames delivered fresh in every cluster ({j.get('frames')})")
+
+
 def case_same_hash(recording):
     bench_json = os.path.join(TMP, "bench.json")
     r = run([os.path.join(BIN, "godhand-bench"), "--recording", recording, "--quiet", "--json", bench_json], 300)
@@ -75,6 +91,10 @@ def case_same_hash(recording):
           f"distributed result_hash {j.get('result_hash')} == in-process {b['result_hash']}")
     check(j.get("penetration_max_m", 1) == b["penetration_max_m"], "same penetration figure as in-process")
     check(j.get("clipped_steps") == b["clipped_steps"], f"same clipped steps ({j.get('clipped_steps')} vs {b['clipped_steps']})")
+    for name, c in j.get("delivery", {}).items():
+        check(c == {"expected": b["frames"], "fresh": b["frames"], "stale": 0, "lost": 0},
+              f"lock-step {name}: every frame delivered fresh ({c})")
+    delivery_checks(j)
     common_checks(j)
 
 
@@ -90,17 +110,187 @@ def case_live(recording):
     check(lat.get("samples", 0) > 0 and lat.get("median", 0) > 0,
           f"end-to-end latency measured: median {lat.get('median', 0):.0f} us, p99 {lat.get('p99', 0):.0f} us over {lat.get('samples')} states")
     check(j.get("penetration_max_m", 1) <= j.get("margin_m", 0), f"nothing penetrates ({j.get('penetration_max_m')} m)")
+    check(j.get("check", {}).get("ok") is True and j.get("dead_at_end") == [], f"check passed, nothing dead ({j.get('check')})")
+    delivery_checks(j)
     common_checks(j)
+
+
+def launch_bg(extra):
+    """Starts godhand-launch (per-second lines on) and returns (process, report path)."""
+    report = os.path.join(TMP, "report.json")
+    cmd = [os.path.join(BIN, "godhand-launch"), "--domain", DOMAIN, "--json", report, "--log-dir",
+           os.path.join(TMP, "logs")] + extra
+    print("$ " + " ".join(cmd), flush=True)
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True), report
+
+
+def wait_line(p, pattern, timeout, lines):
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        l = p.stdout.readline()
+        if not l:
+            return None
+        lines.append(l)
+        print(l, end="")
+        if re.search(pattern, l):
+            return l
+    return None
+
+
+def pid_of(service):
+    """pid of the domain's process of a service ("resolver", "solver/right", ...)."""
+    prog, _, cluster = service.partition("/")
+    for l in processes_of_domain():
+        if f"godhand-{prog} " in l + " " and (not cluster or f"--cluster {cluster} " in l + " "):
+            return int(l.split()[0])
+    return None
+
+
+def case_freeze(service, recording, restart):
+    """SIGSTOP a service for 2 s (or for good, with --restart): the watchdog must see it silent,
+    the live lines must not show it running meanwhile, the states it lets out late are stale, the
+    frames lost are counted, and --check fails on them (without --restart)."""
+    extra = ["--recording", recording, "--speed", "0.5"] + (["--restart"] if restart else ["--check"])
+    p, report = launch_bg(extra)
+    lines = []
+    try:
+        ok = wait_line(p, r"launch: t +[1-9]\.\d s \|.*resolver \d+ Hz running", 120, lines)
+        check(ok is not None, "the replay is running")
+        pid = pid_of(service)
+        check(pid is not None, f"{service} found ({pid})")
+        if pid:
+            os.kill(pid, signal.SIGSTOP)
+            t0 = time.time()
+            frozen = []
+            while time.time() - t0 < (2.0 if not restart else 6.0):
+                l = p.stdout.readline()
+                if not l:
+                    break
+                lines.append(l)
+                print(l, end="")
+                if time.time() - t0 > 1.9 and l.startswith("launch: t "):
+                    frozen.append(l)
+                if restart and f"{service} restarted" in l:
+                    break
+            if not restart:
+                os.kill(pid, signal.SIGCONT)
+            if restart:
+                check(any(f"{service} restarted" in l for l in lines), f"{service} restarted by the watchdog")
+        out, _ = p.communicate(timeout=240)
+    except Exception:
+        p.kill()
+        p.communicate()
+        raise
+    print(out)
+    lines += out.splitlines(True)
+    j = json.load(open(report)) if os.path.exists(report) else {}
+    text = "".join(lines)
+    prog = service.replace("/", r"\/")
+    check(re.search(rf"watchdog: {service} silent", text) is not None, f"the launcher reported {service} silent")
+    eps = [e for e in j.get("watchdog", {}).get("silent", []) if e["service"] == service]
+    check(len(eps) >= 1, f"a watchdog episode of {service} ({eps})")
+    running_while_frozen = [l for l in lines if l.startswith("launch: t ") and re.search(rf"{prog} \d+ Hz running", l)
+                            and "DEAD" not in l]
+    dead_lines = [l for l in lines if l.startswith("launch: t ") and (f"{service} DEAD" in l or f"{service} DOWN" in l)]
+    check(len(dead_lines) >= 1, f"live lines showed {service} DEAD or DOWN ({len(dead_lines)} lines)")
+    check(j.get("old_unmarked_states", 1) == 0, f"no state older than the stale limit arrived unmarked ({j.get('old_unmarked_states')})")
+    d = j.get("delivery", {})
+    lost = sum(c["lost"] + c["stale"] for c in d.values())
+    check(lost > 0, f"the frames missed while {service} was frozen are counted (lost + stale {lost}: {d})")
+    delivery_checks(j)
+    if restart:
+        check(service in j.get("watchdog", {}).get("restarted", []), f"{service} restarted by the watchdog ({j.get('watchdog')})")
+        check(j.get("dead_at_end") == [], f"nothing dead at the end ({j.get('dead_at_end')})")
+        check(p.returncode == 0, f"exit 0 ({p.returncode})")
+    else:
+        budget_fail = [r for r in j.get("check", {}).get("reasons", []) if "frames lost" in r]
+        check(p.returncode == 1 and j.get("check", {}).get("ok") is False and budget_fail,
+              f"--check failed (exit {p.returncode}) on the lost frames: {j.get('check')}")
+        check("result_hash" not in j, "no result hash from a failed run")
+    common_checks(j)
+
+
+def case_drills(recording):
+    """Several drills in one run, every kind of service, timed from the replay (frames and seconds)."""
+    r, j = launch(["--recording", recording, "--kill", "ingest@f40", "--kill", "resolver@1s", "--kill", "scene@2.5s",
+                   "--kill", "solver/left@f100", "--restart-delay", "0.3"])
+    check(r.returncode == 0, f"godhand-launch with four drills exited 0 ({r.returncode})")
+    ds = {d["service"]: d for d in j.get("fault_drills", [])}
+    check(sorted(ds) == ["ingest", "resolver", "scene", "solver/left"], f"every drill reported ({sorted(ds)})")
+    for name, d in ds.items():
+        check(d["killed_s"] is not None and d["restarted_s"] is not None and d["restarted_s"] > d["killed_s"],
+              f"{name}: killed at {d['killed_s']} s, restarted at {d['restarted_s']} s (from the replay start)")
+    check(ds.get("ingest", {}).get("killed_frame", 0) >= 40, f"ingest killed at frame >= 40 ({ds.get('ingest')})")
+    check(ds.get("resolver", {}).get("killed_s") is not None and ds["resolver"]["killed_s"] >= 1.0, "resolver killed >= 1 s into the replay")
+    check(j.get("ingest_runs") == 2, f"the restarted ingest replayed again: 2 ingest runs ({j.get('ingest_runs')})")
+    check("-1.00" not in r.stdout, "no unset time printed as -1.00")
+    check(j.get("shm_segments_left", -1) == 0 and j.get("shm_segments_removed", 0) >= 1,
+          f"the killed processes' segments were removed by the launcher ({j.get('shm_segments_removed')}), none left")
+    delivery_checks(j)
+    common_checks(j)
+
+
+def case_startup_remote():
+    """A lab whose services all run on another host: start-up fails with exit 3 and names them."""
+    text = open(os.path.join(DEPLOY, "lab", "local.pbtxt")).read()
+    lab_dir = os.path.join(DEPLOY, "lab")
+    lines = []
+    for l in text.splitlines():
+        st = l.strip()
+        if st.startswith("host:"):
+            l = '  host: "lab-pc-remote"'
+        for key in ("scene:", "recording:", "model:", "profiles:"):
+            if st.startswith(key) and '"' in st:
+                path = st.split('"')[1]
+                l = l.replace(path, os.path.normpath(os.path.join(lab_dir, path)))
+        lines.append(l)
+    lab = os.path.join(TMP, "remote.pbtxt")
+    open(lab, "w").write("\n".join(lines) + "\n")
+    r = run([os.path.join(BIN, "godhand-launch"), "--lab", lab, "--domain", DOMAIN, "--start-timeout", "2", "--quiet"], 60)
+    print(r.stdout, r.stderr)
+    check(r.returncode == 3, f"start-up failure exits 3 ({r.returncode})")
+    for name in ["scene", "resolver", "solver/right", "solver/left"]:
+        check(f"{name} (on lab-pc-remote" in r.stderr, f"the failure names {name} and its host")
+    check("another host" in r.stderr, "says every service runs on another host")
+
+
+def case_lockstep_fail(recording):
+    """A lock-step run that fails (a solver frozen past the deadline) writes and prints no hash."""
+    p, report = launch_bg(["--lockstep", "--recording", recording, "--deadline", "1", "--check"])
+    lines = []
+    try:
+        wait_line(p, r"launch: t +\d+\.\d s \|.*solver/right \d+ Hz running", 120, lines)
+        pid = pid_of("solver/right")
+        check(pid is not None, "solver/right found")
+        if pid:
+            os.kill(pid, signal.SIGSTOP)
+        out, _ = p.communicate(timeout=120)
+        if pid:
+            try:
+                os.kill(pid, signal.SIGCONT)
+            except ProcessLookupError:
+                pass
+    except Exception:
+        p.kill()
+        p.communicate()
+        raise
+    print(out)
+    j = json.load(open(report)) if os.path.exists(report) else {}
+    check(p.returncode == 1, f"the failed lock-step run exits 1 ({p.returncode})")
+    check("result_hash" not in j and "result hash" not in out, "no result hash printed or written")
+    check(bool(j.get("failure")), f"the failure is reported ({j.get('failure', '')[:80]})")
 
 
 def case_kill(service, recording):
     r, j = launch(["--recording", recording, "--kill", service + "@1.5", "--restart-delay", "0.5"])
     check(r.returncode == 0, "godhand-launch with the fault drill exited 0")
-    d = j.get("fault_drill", {})
-    check(d.get("killed_s", -1) > 0 and d.get("restarted_s", -1) > d.get("killed_s", 0), f"{service} killed then restarted ({d})")
+    d = {k: (-1 if v is None else v) for k, v in j.get("fault_drill", {}).items()}
+    check(d.get("killed_s", -1) >= 1.5 and d.get("restarted_s", -1) > d.get("killed_s", 0),
+          f"{service} killed 1.5 s after the replay started, then restarted ({d})")
     check(j.get("stale_states", 0) > 0, f"hands were marked stale while {service} was gone ({j.get('stale_states')})")
     check(d.get("resumed_s", -1) > d.get("restarted_s", 0),
           f"fresh states again after the restart: {d.get('resume_after_restart_s', -1):.2f} s after it")
+    delivery_checks(j)
     check(j.get("penetration_max_m", 1) <= j.get("margin_m", 0),
           f"penetration-free against the last scene throughout ({j.get('penetration_max_m')} m)")
     common_checks(j)
@@ -122,6 +312,10 @@ def case_rejects():
         (["godhand-ingest", "--lab", lab, "--source", "dtrack:5000"], "unknown tracker source"),
         (["godhand-ingest", "--lab", lab, "--source", "/nonexistent/rec.json"], "/nonexistent/rec.json"),
         (["godhand-launch", "--lab", lab, "--kill", "scene"], "--kill"),
+        (["godhand-launch", "--lab", lab, "--kill", "@2"], "--kill '@2'"),
+        (["godhand-launch", "--lab", lab, "--kill", "scene@"], "--kill 'scene@'"),
+        (["godhand-launch", "--lab", lab, "--kill", "scene@2", "--kill", "bogus@1"], "no service 'bogus'"),
+        (["godhand-launch", "--lab", lab, "--kill", "scene@f0"], "--kill 'scene@f0'"),
         (["godhand-launch", "--lab", os.path.join(TMP, "missing.pbtxt")], "missing.pbtxt"),
         (["godhand-launch", "--lab", lab, "--bogus"], "--bogus"),
     ]
@@ -219,6 +413,16 @@ try:
         case_rejects()
     elif CASE == "loopback":
         case_loopback(ARGS[0])
+    elif CASE == "drills":
+        case_drills(ARGS[0])
+    elif CASE == "freeze":
+        case_freeze(ARGS[0], ARGS[1], False)
+    elif CASE == "freeze-restart":
+        case_freeze(ARGS[0], ARGS[1], True)
+    elif CASE == "startup-remote":
+        case_startup_remote()
+    elif CASE == "lockstep-fail":
+        case_lockstep_fail(ARGS[0])
     else:
         print(f"unknown case {CASE}")
         sys.exit(2)

@@ -1,0 +1,50 @@
+#include "common/watchdog.h"
+
+namespace godhand {
+
+void Watchdog::endEpisode(Entry& e, Clock::time_point now) {
+  if (e.silent && e.episode >= 0) episodes_[static_cast<size_t>(e.episode)].end_s = seconds(now);
+  e.silent = false;
+  e.episode = -1;
+}
+
+void Watchdog::beat(const std::string& service, Clock::time_point now) {
+  Entry& e = entries_[service];
+  endEpisode(e, now);
+  if (now > e.last) e.last = now;
+}
+
+std::vector<std::string> Watchdog::update(Clock::time_point now) {
+  std::vector<std::string> out;
+  for (auto& [name, e] : entries_) {
+    if (e.last == Clock::time_point{} || e.silent) continue;
+    if (std::chrono::duration<double>(now - e.last).count() > silent_after_) {
+      e.silent = true;
+      e.episode = static_cast<int>(episodes_.size());
+      episodes_.push_back({name, seconds(e.last) + silent_after_, -1.0});
+      out.push_back(name);
+    }
+  }
+  return out;
+}
+
+Watchdog::Health Watchdog::health(const std::string& service) const {
+  auto it = entries_.find(service);
+  if (it == entries_.end() || it->second.last == Clock::time_point{}) return Health::Unknown;
+  return it->second.silent ? Health::Silent : Health::Alive;
+}
+
+double Watchdog::silentFor(const std::string& service, Clock::time_point now) const {
+  auto it = entries_.find(service);
+  if (it == entries_.end() || it->second.last == Clock::time_point{}) return -1.0;
+  return std::chrono::duration<double>(now - it->second.last).count();
+}
+
+void Watchdog::reset(const std::string& service, Clock::time_point now) {
+  auto it = entries_.find(service);
+  if (it == entries_.end()) return;
+  endEpisode(it->second, now);
+  entries_.erase(it);
+}
+
+}  // namespace godhand

@@ -1,0 +1,57 @@
+// The launcher's watchdog: ages every service's heartbeats (ServiceStatus, period 0.5 s) on the
+// launcher's clock, injected by the caller (every call takes `now`), so that a silent or frozen
+// service (killed, SIGSTOPped, hung, partitioned) is noticed within `silent_after` seconds and
+// never shown as "running" from its last heartbeat.
+//
+// A service is Unknown until its first heartbeat, then Alive while its newest heartbeat is at
+// most silent_after old, Silent afterwards (until a heartbeat comes again). Each Silent spell is
+// an episode (start, end; end < 0 while it lasts). reset() forgets a service (it is being
+// restarted: Unknown until its new process beats).
+#pragma once
+
+#include <chrono>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace godhand {
+
+class Watchdog {
+ public:
+  using Clock = std::chrono::steady_clock;
+  enum class Health { Unknown, Alive, Silent };
+  struct Episode {
+    std::string service;
+    double start_s = 0.0;  ///< seconds since the watchdog's origin when it went silent
+    double end_s = -1.0;   ///< when it beat again, was reset, or < 0: still silent
+  };
+
+  Watchdog(double silent_after_s, Clock::time_point origin) : silent_after_(silent_after_s), origin_(origin) {}
+
+  /// A heartbeat of `service` arrived at `now`.
+  void beat(const std::string& service, Clock::time_point now);
+  /// Re-evaluates every service at `now`; returns the services that became Silent in this call.
+  std::vector<std::string> update(Clock::time_point now);
+  Health health(const std::string& service) const;
+  /// Seconds since the newest heartbeat (< 0: none yet).
+  double silentFor(const std::string& service, Clock::time_point now) const;
+  void reset(const std::string& service, Clock::time_point now);
+  const std::vector<Episode>& episodes() const { return episodes_; }
+  double silentAfter() const { return silent_after_; }
+
+ private:
+  struct Entry {
+    Clock::time_point last{};
+    bool silent = false;
+    int episode = -1;
+  };
+  double seconds(Clock::time_point t) const { return std::chrono::duration<double>(t - origin_).count(); }
+  void endEpisode(Entry& e, Clock::time_point now);
+
+  double silent_after_;
+  Clock::time_point origin_;
+  std::map<std::string, Entry> entries_;
+  std::vector<Episode> episodes_;
+};
+
+}  // namespace godhand

@@ -1,0 +1,142 @@
+#include "launch/report.h"
+
+#include <cstdio>
+
+namespace godhand {
+
+namespace {
+std::string secs(double s) {
+  if (s < 0) return "never";
+  char b[32];
+  std::snprintf(b, sizeof b, "%.2f s", s);
+  return b;
+}
+nlohmann::json orNull(double s) { return s < 0 ? nlohmann::json(nullptr) : nlohmann::json(s); }
+}  // namespace
+
+void printSummary(const RunReport& r) {
+  std::printf("launch: %s run of %.1f s: %llu of %llu frames delivered fresh in every cluster%s, %ld hand states received (%ld stale)\n",
+              r.lockstep ? "lock-step" : "live", r.run_s, static_cast<unsigned long long>(r.frames_complete),
+              static_cast<unsigned long long>(r.expected_frames),
+              r.ingest_runs > 1 ? (" (" + std::to_string(r.ingest_runs) + " ingest runs)").c_str() : "", r.states, r.stale_states);
+  for (size_t c = 0; c < r.clusters.size() && c < r.delivery.size(); ++c) {
+    const DeliveryCounts& d = r.delivery[c];
+    std::printf("  delivery %-8s expected %llu, fresh %llu, stale %llu, lost %llu\n", r.clusters[c].c_str(),
+                static_cast<unsigned long long>(d.expected), static_cast<unsigned long long>(d.fresh),
+                static_cast<unsigned long long>(d.stale), static_cast<unsigned long long>(d.lost));
+  }
+  if (r.old_unmarked > 0)
+    std::printf("  WARNING: %ld hand states arrived older than %.2f s without the stale flag (counted stale)\n", r.old_unmarked,
+                r.stale_after_s);
+  std::printf("  end-to-end latency (tracker sample -> HandState here): median %.0f us, p99 %.0f us, max %.0f us; %.1f fresh frames/s\n",
+              r.latency_median_us, r.latency_p99_us, r.latency_max_us, r.frames_per_s);
+  for (const auto& [name, s] : r.services)
+    std::printf("  %-14s frame %llu, source->output %.0f us, in %llu, out %llu, rejected %llu, late %llu, deadline misses %llu, state %s, %s\n",
+                name.c_str(), static_cast<unsigned long long>(s.frame), s.latency_median_us,
+                static_cast<unsigned long long>(s.samples_in), static_cast<unsigned long long>(s.samples_out),
+                static_cast<unsigned long long>(s.rejected), static_cast<unsigned long long>(s.late),
+                static_cast<unsigned long long>(s.deadline_misses), s.state.c_str(), s.health.c_str());
+  std::printf("  penetration max %.4f mm (margin %.3f mm), joint gap max %.2e m, free tracking error max %.2f mm, clipped %ld, scene push-outs %ld\n",
+              r.penetration_max_m * 1e3, r.margin_m * 1e3, r.joint_gap_max_m, r.free_err_max_m * 1e3, r.clipped, r.pushouts);
+  if (r.penetration_unscored > 0)
+    std::printf("  penetration not scored for %ld states in %zu window(s) while the scene was down (its last poses are old)\n",
+                r.penetration_unscored, r.unscored_windows.size());
+  for (const Watchdog::Episode& e : r.silent)
+    std::printf("  watchdog: %s silent (no heartbeat for > %.1f s) from %s to %s\n", e.service.c_str(), r.silent_after_s,
+                secs(e.start_s).c_str(), e.end_s < 0 ? "the end" : secs(e.end_s).c_str());
+  for (const DrillReport& d : r.drills)
+    std::printf("  fault drill %s: killed at %s (frame %llu), restarted at %s; stale from %s to %s, fresh again at %s; scene's first state after a restart at %s (times from the replay start)\n",
+                d.spec.c_str(), secs(d.killed_s).c_str(), static_cast<unsigned long long>(d.killed_frame), secs(d.restarted_s).c_str(),
+                secs(r.stale_first_s).c_str(), secs(r.stale_last_s).c_str(), secs(r.resumed_s).c_str(), secs(r.scene_back_s).c_str());
+  std::printf("  late joiner: %zu of %llu HandStates and the SceneDescription %s%s\n", r.late_states,
+              static_cast<unsigned long long>(r.hands), r.late_description ? "received" : "NOT received",
+              r.late_ms >= 0 ? (" in " + std::to_string(static_cast<int>(r.late_ms)) + " ms").c_str() : "");
+  std::printf("  shutdown:%s; shared-memory segments left: %zu%s\n", r.exits.c_str(), r.shm_left,
+              r.shm_removed ? (" (" + std::to_string(r.shm_removed) + " left by this lab's killed processes, removed)").c_str() : "");
+  if (r.have_hash && !r.failed()) std::printf("  result hash %016llx\n", static_cast<unsigned long long>(r.result_hash));
+  if (!r.failure.empty()) std::printf("launch: FAILED: %s\n", r.failure.c_str());
+}
+
+nlohmann::json reportJson(const RunReport& r) {
+  nlohmann::json j;
+  j["recording"] = r.recording;
+  j["scene"] = r.scene;
+  j["frames"] = r.frames_complete;
+  j["expected_frames"] = r.expected_frames;
+  j["hands"] = r.hands;
+  j["triangles"] = r.triangles;
+  j["reference_triangles"] = r.reference_triangles;
+  j["frame_rate_hz"] = r.frame_rate_hz;
+  j["solver"] = r.solver;
+  j["physics_hz"] = r.physics_hz;
+  j["mode"] = r.mode;
+  j["step_us"] = {{"median", r.step_median_us}, {"p99", r.step_p99_us}, {"max", r.step_max_us}};
+  j["hz_median"] = r.step_median_us > 0 ? 1e6 / r.step_median_us : 0.0;
+  j["held_states"] = r.held_states;
+  j["latency_us"] = {{"median", r.latency_median_us}, {"p99", r.latency_p99_us}, {"max", r.latency_max_us}, {"samples", r.latency_samples}};
+  j["run_s"] = r.run_s;
+  j["frames_per_s"] = r.frames_per_s;
+  j["stages_us"] = r.stages_us;
+  j["penetration_max_m"] = r.penetration_max_m;
+  j["penetration_unscored_states"] = r.penetration_unscored;
+  nlohmann::json w = nlohmann::json::array();
+  for (const auto& [a, b] : r.unscored_windows) w.push_back({{"from_s", orNull(a)}, {"to_s", orNull(b)}});
+  j["penetration_unscored_windows"] = w;
+  j["margin_m"] = r.margin_m;
+  j["joint_gap_max_m"] = r.joint_gap_max_m;
+  j["free_tracking_error_max_m"] = r.free_err_max_m;
+  j["free_tracking_error_median_m"] = r.free_err_median_m;
+  j["contacts_max"] = r.contacts_max;
+  j["kkt_residual_max"] = r.kkt_max;
+  j["solver_failures"] = r.solver_failures;
+  j["inexact_solves"] = r.inexact;
+  j["clipped_steps"] = r.clipped;
+  j["lifted_starts"] = r.lifted;
+  j["started_inside"] = r.inside;
+  j["scene_pushouts"] = r.pushouts;
+  j["hand_states"] = r.states;
+  j["stale_states"] = r.stale_states;
+  j["old_unmarked_states"] = r.old_unmarked;
+  j["ingest_runs"] = r.ingest_runs;
+  nlohmann::json delivery = nlohmann::json::object();
+  for (size_t c = 0; c < r.clusters.size() && c < r.delivery.size(); ++c)
+    delivery[r.clusters[c]] = {{"expected", r.delivery[c].expected}, {"fresh", r.delivery[c].fresh},
+                               {"stale", r.delivery[c].stale}, {"lost", r.delivery[c].lost}};
+  j["delivery"] = delivery;
+  nlohmann::json services = nlohmann::json::object();
+  for (const auto& [name, s] : r.services)
+    services[name] = {{"frame", s.frame}, {"samples_in", s.samples_in}, {"samples_out", s.samples_out}, {"rejected", s.rejected},
+                      {"late", s.late}, {"deadline_misses", s.deadline_misses}, {"state", s.state}, {"health", s.health}};
+  j["services"] = services;
+  nlohmann::json silent = nlohmann::json::array();
+  for (const Watchdog::Episode& e : r.silent) silent.push_back({{"service", e.service}, {"from_s", orNull(e.start_s)}, {"to_s", orNull(e.end_s)}});
+  j["watchdog"] = {{"silent_after_s", r.silent_after_s}, {"silent", silent}, {"restarted", r.watchdog_restarts}};
+  j["late_joiner"] = {{"hand_states", r.late_states}, {"scene_description", r.late_description}, {"ms", orNull(r.late_ms)}};
+  j["shm_segments_left"] = r.shm_left;
+  j["shm_segments_removed"] = r.shm_removed;
+  j["clean_shutdown"] = r.clean_shutdown;
+  j["dead_at_end"] = r.dead_at_end;
+  if (!r.drills.empty()) {
+    nlohmann::json drills = nlohmann::json::array();
+    for (const DrillReport& d : r.drills)
+      drills.push_back({{"spec", d.spec}, {"service", d.service}, {"killed_s", orNull(d.killed_s)}, {"killed_frame", d.killed_frame},
+                        {"restarted_s", orNull(d.restarted_s)}});
+    j["fault_drills"] = drills;
+    // The first drill with the run's stale window, as before (times from the replay start).
+    const DrillReport& d = r.drills.front();
+    j["fault_drill"] = {{"service", d.service}, {"killed_s", orNull(d.killed_s)}, {"restarted_s", orNull(d.restarted_s)},
+                        {"stale_first_s", orNull(r.stale_first_s)}, {"stale_last_s", orNull(r.stale_last_s)},
+                        {"resumed_s", orNull(r.resumed_s)}, {"scene_back_s", orNull(r.scene_back_s)},
+                        {"resume_after_restart_s", r.resumed_s >= 0 && d.restarted_s >= 0 ? orNull(r.resumed_s - d.restarted_s) : nullptr}};
+  }
+  if (r.have_hash && !r.failed()) {
+    char hex[32];
+    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(r.result_hash));
+    j["result_hash"] = hex;
+  }
+  j["failure"] = r.failure;
+  if (r.checked) j["check"] = {{"ok", r.verdict.ok}, {"reasons", r.verdict.reasons}, {"loss_budget", r.loss_budget}};
+  return j;
+}
+
+}  // namespace godhand

@@ -1,0 +1,101 @@
+// godhand-launch's report: every figure of a run in one struct (RunReport), printed as the
+// summary (printSummary) and written as JSON (reportJson: godhand-bench's format plus the
+// distributed figures). Nothing here measures; main.cc fills the struct. A further block of
+// figures goes in as a field here plus its lines in report.cc.
+//
+// Honesty rules kept here: "N of M frames" are counts (delivery, per cluster), never the highest
+// frame number; frames/s comes from counts; a time that never happened is printed "never" and
+// written null (never -1); a failed run (failure, or a failed --check) has no result_hash.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "common/delivery.h"
+#include "common/watchdog.h"
+
+namespace godhand {
+
+struct ServiceFigures {
+  std::uint64_t frame = 0, samples_in = 0, samples_out = 0, rejected = 0, late = 0, deadline_misses = 0;
+  double latency_median_us = 0, rate_hz = 0;
+  std::string state;        ///< its last heartbeat's
+  std::string health;       ///< the watchdog's at the end: "alive", "silent", "unknown", "not running"
+};
+
+struct DrillReport {
+  std::string spec, service;
+  double killed_s = -1, restarted_s = -1;  ///< seconds after the replay started; < 0: never
+  std::uint64_t killed_frame = 0;          ///< newest replay frame when it fired
+};
+
+struct RunReport {
+  // What ran.
+  std::string recording, scene, solver, mode;
+  std::uint64_t hands = 0;
+  long long triangles = 0, reference_triangles = 0;
+  double frame_rate_hz = 0;
+  int physics_hz = 0;
+  bool lockstep = false;
+  double run_s = 0;
+
+  // Delivery (per cluster, in the lab's order) and the frames complete in every cluster.
+  std::vector<std::string> clusters;
+  std::vector<DeliveryCounts> delivery;
+  std::uint64_t frames_complete = 0;    ///< lock-step: frames with every cluster's state; live: min fresh over clusters
+  std::uint64_t expected_frames = 0;    ///< per cluster
+  std::uint64_t ingest_runs = 0;
+  double replay_span_s = 0;             ///< first to last fresh HandState received
+  double frames_per_s = 0;              ///< fresh frames (min over clusters) / replay_span_s
+  long states = 0, stale_states = 0, held_states = 0;
+  long old_unmarked = 0;                ///< received older than the stale limit but not flagged stale
+  double stale_after_s = 0;
+
+  // Latency and compute.
+  double latency_median_us = 0, latency_p99_us = 0, latency_max_us = 0;
+  std::uint64_t latency_samples = 0;
+  double step_median_us = 0, step_p99_us = 0, step_max_us = 0;
+  std::map<std::string, double> stages_us;
+
+  // Contact figures.
+  double penetration_max_m = 0, margin_m = 0, joint_gap_max_m = 0, free_err_max_m = 0, free_err_median_m = 0, kkt_max = 0;
+  long contacts_max = 0, solver_failures = 0, inexact = 0, clipped = 0, lifted = 0, inside = 0, pushouts = 0;
+  long penetration_unscored = 0;        ///< states not scored: the scene was dead (its poses are old)
+  std::vector<std::pair<double, double>> unscored_windows;  ///< seconds after the replay start
+
+  // Services, liveness, drills.
+  std::map<std::string, ServiceFigures> services;
+  std::vector<Watchdog::Episode> silent;  ///< watchdog episodes (seconds since the replay start)
+  double silent_after_s = 0;
+  std::vector<std::string> watchdog_restarts;
+  std::vector<DrillReport> drills;
+  double stale_first_s = -1, stale_last_s = -1, resumed_s = -1, scene_back_s = -1;
+
+  // End of the run.
+  std::size_t late_states = 0;
+  bool late_description = false;
+  double late_ms = -1;
+  std::string exits;
+  bool clean_shutdown = false;
+  std::size_t shm_left = 0, shm_removed = 0;
+  std::vector<std::string> dead_at_end;
+
+  // Verdict.
+  std::string failure;
+  bool checked = false;
+  double loss_budget = 0;
+  RunVerdict verdict;
+  bool have_hash = false;
+  std::uint64_t result_hash = 0;
+  /// The run failed (a failure, or --check failed): no result hash is printed or written.
+  bool failed() const { return !failure.empty() || (checked && !verdict.ok); }
+};
+
+void printSummary(const RunReport& r);
+nlohmann::json reportJson(const RunReport& r);
+
+}  // namespace godhand

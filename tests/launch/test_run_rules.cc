@@ -1,0 +1,171 @@
+// The launcher's rules, apart from any process or DDS: fault-drill specs (common/drill.h), the
+// heartbeat watchdog on an injected clock (common/watchdog.h), delivery counts and the --check
+// verdict (common/delivery.h). Oracles: counts worked out by hand for small, explicit histories.
+#include <gtest/gtest.h>
+
+#include <chrono>
+
+#include "common/delivery.h"
+#include "common/drill.h"
+#include "common/watchdog.h"
+
+using namespace godhand;
+using namespace std::chrono_literals;
+
+TEST(Drill, SecondsAndFrames) {
+  Drill d = parseDrill("scene@2");
+  EXPECT_EQ(d.service, "scene");
+  EXPECT_FALSE(d.by_frame);
+  EXPECT_DOUBLE_EQ(d.seconds, 2.0);
+  d = parseDrill("solver/right@1.5s");
+  EXPECT_EQ(d.service, "solver/right");
+  EXPECT_DOUBLE_EQ(d.seconds, 1.5);
+  d = parseDrill("ingest@f120");
+  EXPECT_TRUE(d.by_frame);
+  EXPECT_EQ(d.frame, 120u);
+}
+
+TEST(Drill, DueFromTheReplayNotTheLauncher) {
+  const Drill s = parseDrill("scene@2");
+  EXPECT_FALSE(s.due(-1.0, 0));    // replay not started: never, however long start-up takes
+  EXPECT_FALSE(s.due(1.99, 500));
+  EXPECT_TRUE(s.due(2.0, 1));
+  const Drill f = parseDrill("scene@f10");
+  EXPECT_FALSE(f.due(100.0, 9));
+  EXPECT_TRUE(f.due(0.1, 10));
+  EXPECT_FALSE(f.due(-1.0, 10));
+}
+
+TEST(Drill, RejectsIncompleteSpecsWithOneLine) {
+  for (const char* bad : {"@2", "scene@", "scene", "scene@-1", "scene@f0", "scene@f", "scene@2x", "scene@fx", "scene@1e3",
+                          "scene@nan", "scene@s", "scene@inf"}) {
+    try {
+      parseDrill(bad);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const std::invalid_argument& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(bad), std::string::npos) << what;
+      EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    }
+  }
+}
+
+TEST(Watchdog, SilentServiceIsNoticedAndComesBack) {
+  const auto t0 = Watchdog::Clock::time_point{} + 1000s;
+  Watchdog w(1.0, t0);
+  EXPECT_EQ(w.health("resolver"), Watchdog::Health::Unknown);
+  EXPECT_TRUE(w.update(t0 + 10s).empty());  // never beat: not aged (still starting)
+  w.beat("resolver", t0);
+  w.beat("scene", t0);
+  EXPECT_TRUE(w.update(t0 + 900ms).empty());
+  w.beat("scene", t0 + 900ms);
+  // The resolver stops beating (SIGSTOP): silent once its newest beat is older than 1 s.
+  const auto silent = w.update(t0 + 1100ms);
+  ASSERT_EQ(silent.size(), 1u);
+  EXPECT_EQ(silent[0], "resolver");
+  EXPECT_EQ(w.health("resolver"), Watchdog::Health::Silent);
+  EXPECT_EQ(w.health("scene"), Watchdog::Health::Alive);
+  EXPECT_TRUE(w.update(t0 + 1500ms).empty());  // reported once per spell
+  EXPECT_NEAR(w.silentFor("resolver", t0 + 1500ms), 1.5, 1e-9);
+  // It resumes: alive again, one episode from 1.0 s (last beat + limit) to 3.0 s.
+  w.beat("resolver", t0 + 3s);
+  EXPECT_EQ(w.health("resolver"), Watchdog::Health::Alive);
+  ASSERT_EQ(w.episodes().size(), 1u);
+  EXPECT_EQ(w.episodes()[0].service, "resolver");
+  EXPECT_NEAR(w.episodes()[0].start_s, 1.0, 1e-9);
+  EXPECT_NEAR(w.episodes()[0].end_s, 3.0, 1e-9);
+  // The scene goes silent and is restarted: the episode ends at the reset, Unknown until it beats.
+  ASSERT_EQ(w.update(t0 + 3s).size(), 1u);
+  EXPECT_LT(w.episodes()[1].end_s, 0.0);
+  w.reset("scene", t0 + 4s);
+  EXPECT_EQ(w.health("scene"), Watchdog::Health::Unknown);
+  EXPECT_NEAR(w.episodes()[1].end_s, 4.0, 1e-9);
+  EXPECT_TRUE(w.update(t0 + 20s).size() == 1u);  // only the resolver (silent again), not the reset scene
+}
+
+TEST(Delivery, CountsFramesNotTheHighestFrameNumber) {
+  Delivery d(2);
+  const std::uint64_t run = 77;
+  // Hand 0: frames 1..10 fresh. Hand 1: frames 1..3 fresh, 4..5 only stale, 6 stale then fresh,
+  // then only frame 10 (7, 8, 9 lost).
+  for (std::uint64_t k = 1; k <= 10; ++k) d.add(0, run, k, false);
+  for (std::uint64_t k = 1; k <= 3; ++k) d.add(1, run, k, false);
+  d.add(1, run, 4, true);
+  d.add(1, run, 5, true);
+  d.add(1, run, 5, true);  // held and re-published: still one frame
+  d.add(1, run, 6, true);
+  d.add(1, run, 6, false);
+  d.add(1, run, 10, false);
+  d.add(1, run, 0, false);     // before the first frame: ignored
+  d.add(5, run, 1, false);     // unknown hand: ignored
+  const std::map<std::uint64_t, std::uint64_t> expected{{run, 12}};
+  const DeliveryCounts a = d.counts(0, expected), b = d.counts(1, expected);
+  EXPECT_EQ(a.expected, 12u);
+  EXPECT_EQ(a.fresh, 10u);
+  EXPECT_EQ(a.stale, 0u);
+  EXPECT_EQ(a.lost, 2u);  // 11 and 12 never came
+  EXPECT_EQ(b.fresh, 5u);  // 1, 2, 3, 6, 10
+  EXPECT_EQ(b.stale, 2u);  // 4, 5
+  EXPECT_EQ(b.lost, 5u);   // 7, 8, 9, 11, 12
+  EXPECT_EQ(d.highest(run), 10u);
+}
+
+TEST(Delivery, RunsOfARestartedIngestCountApart) {
+  Delivery d(1);
+  d.published(1, 30);  // the first ingest run reached frame 30, then was killed
+  for (std::uint64_t k = 1; k <= 20; ++k) d.add(0, 1, k, false);
+  for (std::uint64_t k = 1; k <= 50; ++k) d.add(0, 2, k, false);
+  d.add(0, 3, 1, false);  // another run (another lab?) not expected: not counted
+  ASSERT_EQ(d.runs().size(), 3u);
+  EXPECT_EQ(d.highest(1), 30u);
+  const DeliveryCounts c = d.counts(0, {{1, d.highest(1)}, {2, 50}});
+  EXPECT_EQ(c.expected, 80u);
+  EXPECT_EQ(c.fresh, 70u);
+  EXPECT_EQ(c.lost, 10u);
+}
+
+namespace {
+RunFigures goodRun() {
+  RunFigures f;
+  f.loss_budget = 0.05;
+  f.delivery["right"] = {100, 99, 0, 1};
+  f.late_joiner_ok = true;
+  f.margin = 1e-4;
+  f.states = 200;
+  return f;
+}
+}  // namespace
+
+TEST(RunVerdict, PassesACleanRunAndNamesEachFailure) {
+  EXPECT_TRUE(evaluateRun(goodRun()).ok);
+  RunFigures f = goodRun();
+  f.delivery["left"] = {100, 40, 4, 56};
+  f.dead_at_end = {"resolver"};
+  f.late_joiner_ok = false;
+  f.drills_not_done = {"scene@f999"};
+  const RunVerdict v = evaluateRun(f);
+  EXPECT_FALSE(v.ok);
+  ASSERT_EQ(v.reasons.size(), 4u);
+  EXPECT_NE(v.reasons[0].find("left: 56 of 100 frames lost (budget 5)"), std::string::npos) << v.reasons[0];
+  EXPECT_NE(v.reasons[1].find("resolver"), std::string::npos);
+  EXPECT_NE(v.reasons[2].find("late joiner"), std::string::npos);
+  EXPECT_NE(v.reasons[3].find("scene@f999"), std::string::npos);
+}
+
+TEST(RunVerdict, LockStepAllowsNoLossAndNoStaleFrame) {
+  RunFigures f = goodRun();
+  f.lockstep = true;
+  EXPECT_FALSE(evaluateRun(f).ok);  // 1 lost
+  f.delivery["right"] = {100, 100, 0, 0};
+  EXPECT_TRUE(evaluateRun(f).ok);
+  f.delivery["right"] = {100, 99, 1, 0};
+  EXPECT_FALSE(evaluateRun(f).ok);
+  f = goodRun();
+  f.failure = "ingest ended with exit code 3\nlog...";
+  const RunVerdict v = evaluateRun(f);
+  ASSERT_EQ(v.reasons.size(), 1u);
+  EXPECT_EQ(v.reasons[0], "the run failed: ingest ended with exit code 3");
+  f = goodRun();
+  f.delivery["right"] = {0, 0, 0, 0};
+  EXPECT_FALSE(evaluateRun(f).ok);  // nothing expected is not a success
+}
