@@ -1,5 +1,6 @@
 // godhand-ingest: reads one tracker source (bridges/source) and publishes one HandTarget per
-// hand cluster of the lab and frame. Live: replays at the recorded rate (times --speed).
+// hand cluster of the lab and frame. Live: replays a recording at the recorded rate (times
+// --speed), or publishes each frame of a live source (dtrack://HOST:PORT) as it arrives.
 // Lock-step: publishes frame k once every cluster's HandState of frame k-1 is back, so the run
 // goes as fast as the slowest stage allows and is deterministic.
 #include <chrono>
@@ -11,6 +12,8 @@
 #include "model/hand_model.h"
 #include "runtime/convert.h"
 #include "runtime/service.h"
+#include "source/live.h"
+#include "source/recording.h"
 #include "source/tracker_source.h"
 
 using namespace godhand;
@@ -21,7 +24,10 @@ constexpr const char* kSynopsis =
     "Reads a tracker source and publishes godhand/hand_target: per frame one HandTarget for each hand\n"
     "cluster of the lab (the tracked hand of the cluster's side with the highest confidence,\n"
     "retargeted onto the cluster's hand model; tracked = false when the side is not seen).\n"
-    "Live mode replays at the recorded rate; --lockstep waits for each frame's HandStates.";
+    "Live mode replays at the recorded rate; --lockstep waits for each frame's HandStates.\n"
+    "A live source (dtrack://HOST:PORT: ART DTrack ASCII over UDP) publishes every accepted frame as\n"
+    "it arrives, reports a silence of --silence S seconds (and publishes the hands untracked, so\n"
+    "they are held), and runs until --duration S or SIGINT/SIGTERM.";
 }
 
 int main(int argc, char** argv) {
@@ -31,7 +37,21 @@ int main(int argc, char** argv) {
   std::string source_spec;
   int frames = 0;
   double speed = 1.0, start_timeout = 30.0;
-  cli.option("--source", &source_spec, "SPEC", "tracker source: leap:FILE or FILE.json (default: the lab's recording)");
+  cli.option("--source", &source_spec, "SPEC",
+             "tracker source: a recording of any format (Leap JSON, .dtrack, a --record file; detected by content),\n"
+             "leap:FILE / dtrack:FILE, or a live dtrack://HOST:PORT (default: the lab's recording)");
+  double duration = 0.0, silence = 1.0;
+  std::string record;
+  bridges::CalibrationText calib;
+  cli.option("--duration", &duration, "S", "stop cleanly after S seconds (0: at the end of a recording / never for a live source)");
+  cli.option("--silence", &silence, "S", "a live source without frames for S seconds is reported (default 1)");
+  cli.option("--record", &record, "FILE", "live source: write every datagram that comes in, with its arrival time (replayable)");
+  cli.option("--tracker-pose", &calib.pose, "POSE", "tracker to world: x,y,z[,rx,ry,rz degrees | ,qw,qx,qy,qz] (m)");
+  cli.option("--tracker-units", &calib.units, "U", "DTrack room units: mm (default), cm, m");
+  cli.option("--tracker-up", &calib.up, "AXIS", "DTrack room up axis: z (default, normal calibration) or y (powerwall)");
+  cli.option("--hand-map", &calib.hand_map, "MAP", "tracker hand id -> side, e.g. 0:left,1:right (others dropped, counted)");
+  cli.option("--palm-offset", &calib.palm_offset, "F,T,P", "DTrack: palm centre from the hand target, m (toward fingers, thumb, palm)");
+  cli.option("--max-datagram", &calib.max_datagram, "BYTES", "DTrack: larger datagrams are rejected as oversized (default 32768)");
   cli.option("--frames", &frames, "N", "stop after N frames (0: all)");
   cli.option("--speed", &speed, "X", "live replay speed factor");
   cli.option("--start-timeout", &start_timeout, "S", "wait at most this long for every service of the lab to report");
@@ -39,6 +59,8 @@ int main(int argc, char** argv) {
   if (frames < 0) cli.fail("--frames must be >= 0");
   if (!(speed >= 0.01 && speed <= 1000.0)) cli.fail("--speed must be in [0.01, 1000]");
   if (!(start_timeout > 0.0 && start_timeout <= 3600.0)) cli.fail("--start-timeout must be in (0, 3600] s");
+  if (!(duration >= 0.0 && duration <= 7 * 86400.0)) cli.fail("--duration must be in [0, 604800] s");
+  if (!(silence >= 0.05 && silence <= 3600.0)) cli.fail("--silence must be in [0.05, 3600] s");
 
   svc::Service service("ingest", common, cli);
   const LabConfig& lab = service.lab();
@@ -48,7 +70,13 @@ int main(int argc, char** argv) {
   std::vector<HandModel> models(lab.clusters.size());
   std::vector<std::unique_ptr<leap::Retargeter>> retarget;
   try {
-    source = bridges::openSource(source_spec, frames);
+    source = bridges::openSource(source_spec, bridges::sourceOptions(calib, frames));
+    if (source->live()) {
+      if (service.lockstep()) cli.fail("--lockstep needs a recording, not a live source (" + source_spec + ")");
+      source->start();  // bind now: a port in use is a configuration error
+    } else if (!record.empty()) {
+      cli.fail("--record needs a live source (a recording is already a file)");
+    }
     for (size_t c = 0; c < lab.clusters.size(); ++c) {
       models[c] = HandModel::loadFile(lab.clusters[c].model);
       retarget.push_back(std::make_unique<leap::Retargeter>(models[c]));
@@ -59,6 +87,15 @@ int main(int argc, char** argv) {
     }
   } catch (const std::exception& e) {
     cli.fail(e.what());
+  }
+  std::unique_ptr<bridges::RawWriter> recorder;
+  if (!record.empty()) {
+    try {
+      recorder = std::make_unique<bridges::RawWriter>(record, "dtrack");
+    } catch (const std::exception& e) {
+      cli.fail(e.what());
+    }
+    source->setTap([&recorder](const std::string& bytes, std::int64_t arrival_ns) { recorder->write(bytes, arrival_ns); });
   }
   std::fprintf(stderr, "ingest: %s -> %zu cluster(s), %s mode, domain %d\n", source->describe().c_str(),
                lab.clusters.size(), service.lockstep() ? "lock-step" : "live", common.domain >= 0 ? common.domain : static_cast<int>(lab.domain_id));
@@ -135,7 +172,58 @@ int main(int argc, char** argv) {
       if (!service.wait(until)) return 1;
     }
   };
-  while (source->next(&f)) {
+  const bool live_source = source->live();
+  const SteadyClock::time_point run_start = SteadyClock::now();
+  auto elapsed = [&] { return std::chrono::duration<double>(SteadyClock::now() - run_start).count(); };
+  bridges::SilenceMonitor silence_monitor(silence);
+  std::map<std::string, std::uint64_t> source_rejects;  // reasons already passed to service.reject
+  auto syncRejects = [&] {
+    for (const auto& [reason, n] : source->stats().by_reason)
+      for (std::uint64_t& have = source_rejects[reason]; have < n; ++have) service.reject("source: " + reason);
+  };
+  auto publishUntracked = [&] {  // a silent source: every cluster's hand untracked (held downstream)
+    ++k;
+    for (size_t c = 0; c < C; ++c) {
+      out.hand(static_cast<std::uint32_t>(c));
+      out.cluster(lab.clusters[c].name);
+      out.stamp().run(run);
+      out.stamp().frame(k);
+      out.stamp().source_time_ns(svc::nowNs());
+      out.tracked(false);
+      out.confidence(0.0f);
+      out.targets().clear();
+      out.driven().clear();
+      out.stamp().publish_time_ns(svc::nowNs());
+      if (writer.write(out)) ++service.samples_out;
+    }
+  };
+  // 1: a frame in f, 0: the end (recording over, or --duration), -1: stop requested.
+  auto nextFrame = [&]() -> int {
+    if (duration > 0.0 && elapsed() >= duration) return 0;
+    if (!live_source) return source->next(&f) ? 1 : 0;
+    for (;;) {
+      if (source->next(&f)) {
+        if (silence_monitor.frame(elapsed()))
+          std::fprintf(stderr, "ingest: source %s delivers again after a silence\n", source_spec.c_str());
+        syncRejects();
+        return 1;
+      }
+      syncRejects();
+      if (service.stopping()) return -1;
+      if (duration > 0.0 && elapsed() >= duration) return 0;
+      if (silence_monitor.poll(elapsed())) {
+        std::fprintf(stderr, "ingest: source %s silent for %.2f s: hands published untracked (held)\n", source_spec.c_str(), silence);
+        publishUntracked();
+      }
+      drainStates();
+      service.heartbeat();
+      source->waitReadable(20);  // bounded: never blocks heartbeats or a stop
+    }
+  };
+  for (;;) {
+    const int got = nextFrame();
+    if (got < 0) break;
+    if (got == 0) break;
     ++k;
     if (service.lockstep() && k > 1) {
       const int w = waitResolved(k - 1);
@@ -146,7 +234,7 @@ int main(int argc, char** argv) {
                                      std::to_string(deadline) + " s");
       }
     }
-    if (!service.lockstep()) {  // pace at the recorded rate
+    if (!service.lockstep() && !live_source) {  // pace at the recorded rate
       if (k == 1) {
         t0_us = f.timestamp_us;
         t0 = SteadyClock::now();
@@ -158,7 +246,8 @@ int main(int argc, char** argv) {
       drainStates();
     }
     if (service.stopping()) return service.finish(0);
-    const std::int64_t t_source = svc::nowNs();
+    // Latency is counted from the datagram's arrival for a live source.
+    const std::int64_t t_source = live_source && source->lastArrivalNs() > 0 ? source->lastArrivalNs() : svc::nowNs();
     for (size_t c = 0; c < C; ++c) {
       const bridges::TrackedHand* th = bridges::handOfSide(f, lab.clusters[c].side == "right");
       out.hand(static_cast<std::uint32_t>(c));
@@ -194,6 +283,17 @@ int main(int argc, char** argv) {
   }
   const bridges::SourceStats ss = source->stats();
   std::fprintf(stderr, "ingest: source done: %llu frames; %s\n", static_cast<unsigned long long>(ss.frames), ss.detail.c_str());
+  std::string by_reason;
+  for (const auto& [reason, n] : ss.by_reason) by_reason += (by_reason.empty() ? "" : ", ") + reason + " " + std::to_string(n);
+  std::fprintf(stderr, "ingest: source %s: received %llu, accepted %llu, rejected %llu (%s), silences %llu\n", source_spec.c_str(),
+               static_cast<unsigned long long>(ss.received), static_cast<unsigned long long>(ss.frames),
+               static_cast<unsigned long long>(ss.rejected), by_reason.empty() ? "none" : by_reason.c_str(),
+               static_cast<unsigned long long>(silence_monitor.silences()));
+  if (recorder) {
+    std::fprintf(stderr, "ingest: recorded %llu datagrams to %s%s\n", static_cast<unsigned long long>(recorder->records()), record.c_str(),
+                 recorder->ok() ? "" : " (WRITE ERRORS: the file is incomplete)");
+    recorder.reset();
+  }
   service.heartbeat("finished", true);
   return service.finish(0);
 }

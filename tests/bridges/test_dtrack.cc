@@ -19,6 +19,7 @@
 #include "leap/leap_recording.h"
 #include "leap/retarget.h"
 #include "model/hand_model.h"
+#include "source/live.h"
 #include "source/recording.h"
 #include "source/tracker_source.h"
 
@@ -470,4 +471,41 @@ TEST(Sources, LiveUdpOnLoopbackNeverBlocks) {
   EXPECT_NE(st.detail.find("oversized 1"), std::string::npos) << st.detail;
   EXPECT_NE(st.detail.find("stale/duplicate frame 1"), std::string::npos) << st.detail;
   EXPECT_EQ(tapped, sent);
+}
+
+TEST(Sources, CalibrationTextAndSilenceMonitor) {
+  br::CalibrationText t;
+  t.pose = "1,2,3";
+  t.units = "cm";
+  t.up = "y";
+  t.hand_map = "0:left,1:right";
+  t.palm_offset = "0,0,0.02";
+  const br::SourceOptions o = br::sourceOptions(t, 12);
+  EXPECT_EQ(o.frames, 12);
+  EXPECT_EQ(o.X_WT.p, Vec3(1, 2, 3));
+  EXPECT_DOUBLE_EQ(o.units_to_m, 0.01);
+  EXPECT_TRUE(o.y_up);
+  ASSERT_EQ(o.hand_sides.size(), 2u);
+  EXPECT_EQ(o.palm_offset_m, Vec3(0, 0, 0.02));
+  for (auto bad : {br::CalibrationText{"", "inch", "", "", "", 0}, br::CalibrationText{"", "", "x", "", "", 0},
+                   br::CalibrationText{"", "", "", "", "0,0,2", 0}, br::CalibrationText{"", "", "", "", "", 70000},
+                   br::CalibrationText{"1,2", "", "", "", "", 0}})
+    EXPECT_THROW(br::sourceOptions(bad), br::SourceError);
+  // cm units scale the DTrack stream: the palm lands 10x further from the origin.
+  br::CalibrationText cm;
+  cm.units = "cm";
+  const auto a = br::loadRecording(dataPath("pinch.dtrack"));
+  const auto b = br::loadRecording(dataPath("pinch.dtrack"), br::sourceOptions(cm));
+  EXPECT_NEAR((b.mean_palm_W - 10.0 * a.mean_palm_W).norm(), 0.0, 1e-9);
+  br::SilenceMonitor m(1.0);
+  EXPECT_FALSE(m.poll(0.0));
+  EXPECT_FALSE(m.poll(0.99));
+  EXPECT_TRUE(m.poll(1.0));  // reported once
+  EXPECT_FALSE(m.poll(5.0));
+  EXPECT_TRUE(m.silent());
+  EXPECT_TRUE(m.frame(5.5));  // ends the silence
+  EXPECT_FALSE(m.frame(5.6));
+  EXPECT_FALSE(m.poll(6.5));
+  EXPECT_TRUE(m.poll(6.7));
+  EXPECT_EQ(m.silences(), 2u);
 }

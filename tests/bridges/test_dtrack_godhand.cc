@@ -1,0 +1,95 @@
+// Done-when of issue 11: DTrack replayed from the shared sample streams gives the same God hands
+// as the Leap recordings they were made from. Both readers feed the real in-process pipeline
+// (default scene, 16-body models, Bullet) frame by frame, exactly as godhand-bench does; the
+// God-object poses of every body and frame are compared. The Leap run is the oracle.
+#include <cmath>
+#include <cstdio>
+#include <gtest/gtest.h>
+
+#include "leap/leap_recording.h"
+#include "leap/retarget.h"
+#include "model/hand_model.h"
+#include "pipeline/pipeline.h"
+#include "physics/physics_world.h"
+#include "pipeline/stages.h"
+#include "scene/scene_file.h"
+#include "source/recording.h"
+
+using namespace godhand;
+
+namespace {
+
+struct GodRun {
+  std::vector<std::vector<std::vector<Pose>>> poses;  // frame, hand, body
+  double penetration_max = 0.0;
+  std::uint64_t clipped = 0;
+};
+
+GodRun runPipeline(const std::vector<leap::TrackerFrame>& frames, double rate, const Scene& scene, const HandModel& right,
+                const HandModel& left) {
+  std::vector<const HandModel*> models = {&right, &left};
+  PipelineParams params;
+  params.step.dt = 1.0 / rate;
+  Pipeline pipe(scene, models, params, physicsParamsFor(rate, 240.0));
+  std::vector<leap::Retargeter> rt = {leap::Retargeter(right), leap::Retargeter(left)};
+  std::vector<std::vector<Pose>> targets(2);
+  std::vector<std::vector<unsigned char>> has(2);
+  std::vector<HandInput> in(2);
+  GodRun r;
+  for (const leap::TrackerFrame& f : frames) {
+    for (int h = 0; h < 2; ++h) {
+      in[static_cast<size_t>(h)] = HandInput{};
+      const leap::TrackedHand* th = nullptr;
+      for (const leap::TrackedHand& c : f.hands)
+        if (c.right == (h == 0) && (!th || c.confidence > th->confidence)) th = &c;
+      if (!th) continue;
+      rt[static_cast<size_t>(h)].targets(*th, &targets[static_cast<size_t>(h)], &has[static_cast<size_t>(h)]);
+      in[static_cast<size_t>(h)] = {true, targets[static_cast<size_t>(h)].data(), has[static_cast<size_t>(h)].data()};
+    }
+    pipe.step(in);
+    r.poses.emplace_back();
+    for (int h = 0; h < 2; ++h) {
+      r.poses.back().push_back(pipe.started(h) ? pipe.poses(h) : std::vector<Pose>());
+      if (pipe.started(h)) r.penetration_max = std::max(r.penetration_max, pipe.penetration(h));
+    }
+  }
+  r.clipped = pipe.counters().clipped_steps;
+  return r;
+}
+
+}  // namespace
+
+TEST(DtrackGodHands, SameGodHandsAsTheLeapRecordings) {
+  const Scene scene = loadScene(std::string(GODHAND_DEPLOY_DIR) + "/scenes/default.pbtxt");
+  const HandModel right = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  const HandModel left = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_left.pbtxt");
+  for (const char* name : {"pinch", "confidence2-49fps"}) {
+    const leap::Recording l = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/" + name + ".json");
+    const bridges::LoadedRecording d = bridges::loadRecording(std::string(GODHAND_TEST_DATA_DIR) + "/dtrack/" + name + ".dtrack");
+    ASSERT_EQ(d.frames.size(), l.frames().size());
+    // The same dt for both runs (the rates agree to 1e-6 relative; the step uses the Leap one).
+    const GodRun a = runPipeline(l.frames(), l.meanFrameRate(), scene, right, left);
+    const GodRun b = runPipeline(d.frames, l.meanFrameRate(), scene, right, left);
+    double dp = 0.0, dq = 0.0;
+    size_t compared = 0;
+    for (size_t i = 0; i < a.poses.size(); ++i)
+      for (size_t h = 0; h < 2; ++h) {
+        ASSERT_EQ(a.poses[i][h].size(), b.poses[i][h].size()) << name << " frame " << i << " hand " << h << ": started differs";
+        for (size_t k = 0; k < a.poses[i][h].size(); ++k) {
+          dp = std::max(dp, (a.poses[i][h][k].p - b.poses[i][h][k].p).norm());
+          dq = std::max(dq, a.poses[i][h][k].q.angularDistance(b.poses[i][h][k].q));
+          ++compared;
+        }
+      }
+    std::printf("[figure] dtrack_vs_leap_godhand.%s.bodies_compared = %zu\n", name, compared);
+    std::printf("[figure] dtrack_vs_leap_godhand.%s.position_max_m = %.3g\n", name, dp);
+    std::printf("[figure] dtrack_vs_leap_godhand.%s.rotation_max_rad = %.3g\n", name, dq);
+    std::printf("[figure] dtrack_vs_leap_godhand.%s.penetration_max_m = %.3g / %.3g (leap / dtrack)\n", name, a.penetration_max, b.penetration_max);
+    std::printf("[figure] dtrack_vs_leap_godhand.%s.clipped_steps = %llu / %llu\n", name, static_cast<unsigned long long>(a.clipped),
+                static_cast<unsigned long long>(b.clipped));
+    EXPECT_GT(compared, 1000u);
+    EXPECT_LT(dp, 1e-5) << name;
+    EXPECT_LT(dq, 2e-4) << name;
+    EXPECT_LE(b.penetration_max, 1e-4) << name;
+  }
+}
