@@ -45,8 +45,10 @@ void printSummary(const RunReport& r) {
     std::printf("  watchdog: %s silent (no heartbeat for > %.1f s) from %s to %s\n", e.service.c_str(), r.silent_after_s,
                 secs(e.start_s).c_str(), e.end_s < 0 ? "the end" : secs(e.end_s).c_str());
   for (const DrillReport& d : r.drills)
-    std::printf("  fault drill %s: killed at %s (frame %llu), restarted at %s; stale from %s to %s, fresh again at %s; scene's first state after a restart at %s (times from the replay start)\n",
-                d.spec.c_str(), secs(d.killed_s).c_str(), static_cast<unsigned long long>(d.killed_frame), secs(d.restarted_s).c_str(),
+    std::printf("  fault drill %s: killed at %s (frame %llu), restarted at %s (times from the replay start)\n", d.spec.c_str(),
+                secs(d.killed_s).c_str(), static_cast<unsigned long long>(d.killed_frame), secs(d.restarted_s).c_str());
+  if (!r.drills.empty() || !r.watchdog_restarts.empty())
+    std::printf("  stale states from %s to %s, every hand fresh again after a restart at %s; a restarted scene's first state at %s\n",
                 secs(r.stale_first_s).c_str(), secs(r.stale_last_s).c_str(), secs(r.resumed_s).c_str(), secs(r.scene_back_s).c_str());
   std::printf("  late joiner: %zu of %llu HandStates and the SceneDescription %s%s\n", r.late_states,
               static_cast<unsigned long long>(r.hands), r.late_description ? "received" : "NOT received",
