@@ -9,11 +9,15 @@ pkgs=(
   libprotobuf-dev protobuf-compiler
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools default-jre-headless
   libgtest-dev libgmock-dev nlohmann-json3-dev libbenchmark-dev
+  libwebsocketpp-dev libboost-dev chromium  # godhand-viewer: its server, and the browser its tests drive
 )
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
 done
+# Node.js and npm for the viewer's page (npm ci in services/viewer/web): Debian's, unless a node
+# with npm is already installed (another distribution of node conflicts with Debian's npm package).
+command -v npm >/dev/null 2>&1 && command -v node >/dev/null 2>&1 || missing+=(nodejs npm)
 [[ ${#missing[@]} -eq 0 ]] && exit 0
 echo "install-deps: installing ${missing[*]}"
 sudo=""

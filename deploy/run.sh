@@ -28,17 +28,38 @@ build() {  # dir, targets
   echo "run.sh: building $dir ${*:-(all)}"
   ninja -C "$dir" "$@" >"$dir/build.log" 2>&1 || { tail -60 "$dir/build.log"; echo "run.sh: build failed ($dir)" >&2; exit 1; }
 }
+# The viewer's page (services/viewer/web): Node packages pinned by its package-lock.json, installed
+# before configuring so that the build bundles the page (three.js, esbuild).
+web=services/viewer/web
+if [[ ! -x $web/node_modules/.bin/esbuild || $web/package-lock.json -nt $web/node_modules/.package-lock.json ]]; then
+  echo "run.sh: npm ci ($web)"
+  (cd "$web" && npm ci --no-audit --no-fund --loglevel=error >/dev/null) || { echo "run.sh: npm ci failed ($web)" >&2; exit 1; }
+fi
 mkdir -p build
 configure build
 case $mode in
   demo)
-    build build godhand-launch godhand-bench
+    build build godhand-launch godhand-bench godhand-viewer
     status=0
     rec=deploy/recordings/confidence2-49fps.json
+    tmp=$(mktemp -d)
+    # The browser viewer, on the lab's DDS domain: open the printed URL.
+    build/bin/godhand-viewer --quiet >"$tmp/viewer.out" 2>"$tmp/viewer.err" &
+    viewer_pid=$!
+    loop_pid=""
+    stop_demo() {
+      [[ -n $loop_pid ]] && { kill -TERM "$loop_pid" 2>/dev/null; wait "$loop_pid" 2>/dev/null || true; }
+      kill -TERM "$viewer_pid" 2>/dev/null && wait "$viewer_pid" 2>/dev/null || true
+      rm -rf "$tmp"
+    }
+    trap stop_demo EXIT
+    trap 'exit 130' INT TERM
+    for _ in $(seq 200); do grep -q '^viewer: ' "$tmp/viewer.out" 2>/dev/null && break; kill -0 "$viewer_pid" 2>/dev/null || break; sleep 0.1; done
+    url=$(grep -m1 '^viewer: ' "$tmp/viewer.out" || true)
+    if [[ -n $url ]]; then echo "$url"; else cat "$tmp/viewer.err" >&2; echo "run.sh: godhand-viewer did not start" >&2; status=1; fi
     echo "== godhand-launch: every service over Fast DDS (loopback only), live, $rec on deploy/scenes/default.pbtxt =="
     build/bin/godhand-launch --recording "$rec" --check "$@" || status=1
     echo "== the same recording in lock-step, against the in-process run (godhand-bench) =="
-    tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
     build/bin/godhand-bench --recording "$rec" --quiet --json "$tmp/bench.json" | grep -E "step:|result hash" || status=1
     build/bin/godhand-launch --recording "$rec" --lockstep --quiet --json "$tmp/launch.json" | grep -E "lock-step run|latency|result hash" || status=1
     python3 - "$tmp/bench.json" "$tmp/launch.json" <<'PY' || status=1
@@ -50,6 +71,22 @@ print(f"in-process step median {b['step_us']['median']:.0f} us; distributed lock
       f"result_hash {'identical' if same else 'DIFFERENT'} ({l.get('result_hash')})")
 sys.exit(0 if same else 1)
 PY
+    # From a terminal: keep replaying the recording live for the viewer until Enter or Ctrl-C.
+    if [[ -n $url && -t 0 && -t 1 ]]; then
+      (
+        child=""
+        trap '[[ -n $child ]] && kill -TERM "$child" 2>/dev/null; wait; exit 0' TERM
+        while :; do
+          build/bin/godhand-launch --recording "$rec" --quiet --log-dir "$tmp/loop-logs" >/dev/null 2>&1 &
+          child=$!
+          wait "$child" || break
+        done
+      ) &
+      loop_pid=$!
+      echo "$url"
+      echo "run.sh: replaying $rec live for the viewer; press Enter (or Ctrl-C) to stop"
+      read -r _ || true
+    fi
     exit $status
     ;;
   test)

@@ -36,10 +36,11 @@ constexpr const char* kSynopsis =
 std::shared_ptr<const std::string> shared(std::string s) { return std::make_shared<const std::string>(std::move(s)); }
 
 // The meshes of a scene as HTTP routes /mesh/GEN/INDEX.bin.
-void serveMeshes(Server& server, const Scene& scene, const std::string& gen) {
+void serveMeshes(Server& server, const Scene& scene, const std::string& gen, int max_triangles) {
+  geo::TriangleMesh m;
   for (int i = 0; i < static_cast<int>(scene.objects.size()); ++i)
-    if (const geo::TriangleMesh* m = displayMesh(scene, i))
-      server.setRoute("/mesh/" + gen + "/" + std::to_string(i) + ".bin", "application/octet-stream", shared(meshBinary(*m)));
+    if (displayMesh(scene, i, max_triangles, &m))
+      server.setRoute("/mesh/" + gen + "/" + std::to_string(i) + ".bin", "application/octet-stream", shared(meshBinary(m)));
 }
 
 struct LoadedScene {
@@ -57,6 +58,7 @@ int main(int argc, char** argv) {
   std::vector<std::string> meshes;
   int port = 0;
   double max_queue_mb = 4.0;
+  int display_triangles = 12000;
   bool quiet = false;
   cli.option("--lab", &lab_file, "FILE", "lab configuration (domain, profiles) of the live mode");
   cli.option("--domain", &domain, "N", "DDS domain id 0..232; -1 = the lab's");
@@ -65,6 +67,7 @@ int main(int argc, char** argv) {
   cli.option("--port", &port, "PORT", "TCP port; 0 = a free one (printed)");
   cli.option("--web-root", &web_root, "DIR", "the built page (index.html, viewer.js)");
   cli.option("--max-queue-mb", &max_queue_mb, "MB", "per browser: bytes queued beyond this are dropped (counted)");
+  cli.option("--display-triangles", &display_triangles, "N", "the page draws each object decimated to about N triangles (collisions use the full mesh)");
   cli.option("--poses", &poses, "FILE", "offline: a godhand-bench --poses CSV to play (no DDS)");
   cli.option("--scene", &scene_file, "FILE", "offline: the scene file the bench ran on (default: the lab's)");
   cli.multi("--mesh", &meshes, "FILE[:SIZE_M]", "offline: the bench's ad-hoc mesh scene (needs --recording)");
@@ -76,6 +79,7 @@ int main(int argc, char** argv) {
   installStopHandlers();
   if (domain < -1 || domain > 232) cli.fail("--domain must be in 0..232");
   if (port < 0 || port > 65535) cli.fail("--port must be in 0..65535");
+  if (display_triangles < 4 || display_triangles > 10000000) cli.fail("--display-triangles must be in [4, 10000000]");
   if (!(max_queue_mb >= 0.01 && max_queue_mb <= 1024)) cli.fail("--max-queue-mb must be in [0.01, 1024]");
   const bool offline = !poses.empty();
   if (!offline && (!meshes.empty() || !recording.empty())) cli.fail("--mesh and --recording are for the offline mode (--poses FILE)");
@@ -126,7 +130,7 @@ int main(int argc, char** argv) {
   }
 
   if (offline) {
-    serveMeshes(*server, offline_scene, "1");
+    serveMeshes(*server, offline_scene, "1", display_triangles);
     json data = poseFileJson(pose_file);
     data["scene"] = sceneJson(offline_scene, offline_scene_name, "1");
     data["poses_file"] = poses;
@@ -244,7 +248,7 @@ int main(int argc, char** argv) {
       std::string gen = std::to_string(generation);
       if (scene) {
         world = std::make_unique<CollisionWorld>(*scene);
-        serveMeshes(*server, *scene, gen);
+        serveMeshes(*server, *scene, gen, display_triangles);
         std::fprintf(stderr, "viewer: scene '%s' loaded from %s (%zu objects)\n", scene->name.c_str(), l.file.c_str(), scene->objects.size());
       } else {
         gen = "";  // the page draws boxes at the object poses

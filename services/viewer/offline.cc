@@ -1,11 +1,13 @@
 #include "viewer/offline.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
 #include <map>
 #include <sstream>
 
+#include "scene/mesh_io.h"
 #include "viewer/encode.h"
 
 namespace godhand::viewer {
@@ -223,12 +225,14 @@ json sceneJson(const Scene& scene, const std::string& file, const std::string& g
   return {{"name", scene.name}, {"file", file}, {"generation", generation}, {"objects", objects}};
 }
 
-const geo::TriangleMesh* displayMesh(const Scene& scene, int object) {
-  if (object < 0 || object >= static_cast<int>(scene.objects.size())) return nullptr;
+bool displayMesh(const Scene& scene, int object, int max_triangles, geo::TriangleMesh* out) {
+  if (object < 0 || object >= static_cast<int>(scene.objects.size())) return false;
   const SceneObject& o = scene.objects[static_cast<std::size_t>(object)];
-  if (o.reference) return &o.reference->mesh();
-  if (o.god) return &o.god->mesh();
-  return nullptr;
+  const geo::MeshBvh* m = o.reference ? o.reference.get() : o.god.get();
+  if (!m || m->mesh().triangles.empty()) return false;
+  if (static_cast<int>(m->mesh().triangles.size()) <= max_triangles) *out = m->mesh();
+  else *out = decimate(m->mesh(), std::max(4, max_triangles));
+  return true;
 }
 
 std::string meshBinary(const geo::TriangleMesh& mesh) {

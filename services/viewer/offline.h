@@ -54,7 +54,9 @@ nlohmann::json sceneJson(const Scene& scene, const std::string& file, const std:
 /// "GHM1" | u32 LE vertices | u32 LE triangles | float32 LE xyz per vertex | u32 LE indices.
 std::string meshBinary(const geo::TriangleMesh& mesh);
 
-/// The mesh the page draws for an object: its full-resolution reference mesh (null: none).
-const geo::TriangleMesh* displayMesh(const Scene& scene, int object);
+/// The mesh the page draws for an object: its full-resolution reference mesh (else its God mesh),
+/// decimated by vertex clustering (core decimate) to about max_triangles when it has more
+/// (software WebGL draws ~170k triangles at a few frames per second); false when it has none.
+bool displayMesh(const Scene& scene, int object, int max_triangles, geo::TriangleMesh* out);
 
 }  // namespace godhand::viewer

@@ -13,8 +13,21 @@ const GHOST_COLOURS = [0xff8a1e, 0xff4fb0, 0xffd21e];
 const STALE_COLOUR = 0xd23c3c;
 
 const view = document.getElementById('view');
-const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
-renderer.setPixelRatio(window.devicePixelRatio || 1);
+// Software WebGL (SwiftShader, llvmpipe: headless Chromium, machines without a GPU) draws about
+// twice as fast without multisampling; ?aa=0 / ?aa=1 overrides.
+function softwareGl() {
+  try {
+    const gl = document.createElement('canvas').getContext('webgl2');
+    const ext = gl && gl.getExtension('WEBGL_debug_renderer_info');
+    const name = ext ? gl.getParameter(ext.UNMASKED_RENDERER_WEBGL) : '';
+    return /swiftshader|llvmpipe|software/i.test(name);
+  } catch { return false; }
+}
+const aaParam = new URLSearchParams(location.search).get('aa');
+const renderer = new THREE.WebGLRenderer({ antialias: aaParam === null ? !softwareGl() : aaParam === '1', preserveDrawingBuffer: true });
+// Software WebGL is fill-rate bound: draw at 0.6 of the CSS resolution there (?scale=1 overrides).
+const scaleParam = Number(new URLSearchParams(location.search).get('scale'));
+renderer.setPixelRatio(scaleParam > 0 ? scaleParam : softwareGl() ? 0.6 : (window.devicePixelRatio || 1));
 renderer.setSize(view.clientWidth, view.clientHeight);
 view.appendChild(renderer.domElement);
 const scene = new THREE.Scene();
@@ -32,11 +45,18 @@ scene.add(sun);
 const grid = new THREE.GridHelper(2, 40, 0x444a52, 0x33373d);
 grid.rotation.x = Math.PI / 2;
 scene.add(grid);
-window.addEventListener('resize', () => {
-  camera.aspect = view.clientWidth / view.clientHeight;
+// The figures panel covers the left of the view: the picture's centre is shifted right by half of it.
+function fitView() {
+  const w = view.clientWidth, h = view.clientHeight;
+  camera.aspect = w / h;
+  const hud = document.getElementById('hud');
+  const shift = hud && w > 700 ? Math.min(hud.offsetWidth / 2, w * 0.2) : 0;
+  camera.setViewOffset(w, h, -shift, 0, w, h);
   camera.updateProjectionMatrix();
-  renderer.setSize(view.clientWidth, view.clientHeight);
-});
+  renderer.setSize(w, h);
+}
+window.addEventListener('resize', fitView);
+fitView();
 
 const nowNs = () => (performance.timeOrigin + performance.now()) * 1e6;
 const setPose = (obj, p) => {
@@ -284,7 +304,7 @@ function updateHud() {
     const lag = h.lag();
     return `<div id="hand-${h.index}" data-stale="${s ? s.stale : ''}" data-held="${s ? s.held : ''}">` +
       `<b style="color:#${h.godColour.toString(16).padStart(6, '0')}">${h.name}</b> ${badge} ` +
-      `${fmt(h.rate.hz(), 0)} Hz · frame ${s ? s.stamp.frame : '–'} · contacts ${s ? s.contacts : '–'} · ` +
+      `${fmt(h.rate.hz(), 0)} Hz · frame ${s ? s.stamp.frame : '–'} · contacts ${s && s.contacts !== null && s.contacts !== undefined ? s.contacts : '–'} · ` +
       `penetration ${pen} · lag ${lag === null ? '–' : fmt(lag * 1000, 1) + ' mm'}</div>`;
   });
   document.getElementById('hands').innerHTML = hs.join('');
@@ -350,14 +370,21 @@ function animate() {
 // ---------- live ----------
 let feed = null;
 let framedCamera = false;
-function frameCamera(poses) {
-  if (framedCamera || !poses.length || poses[0][0] === null) return;
+let firstStateAt = 0;
+// Frames the camera once on every hand that has a state (waits up to 1 s for a second hand).
+function frameCamera() {
+  if (framedCamera) return;
+  const withState = [...hands.values()].filter((h) => h.state && h.state.started && h.state.poses.length && h.state.poses[0][0] !== null);
+  if (!withState.length) return;
+  if (!firstStateAt) firstStateAt = performance.now();
+  if (withState.length < 2 && performance.now() - firstStateAt < 1000) return;
   framedCamera = true;
-  const c = new THREE.Vector3();
-  poses.forEach((p) => c.add(new THREE.Vector3(p[0], p[1], p[2])));
-  c.divideScalar(poses.length);
+  const box = new THREE.Box3();
+  for (const h of withState) for (const p of h.state.poses) if (p[0] !== null) box.expandByPoint(new THREE.Vector3(p[0], p[1], p[2]));
+  const c = box.getCenter(new THREE.Vector3());
+  const r = Math.max(0.12, box.getSize(new THREE.Vector3()).length());
   controls.target.copy(c);
-  camera.position.set(c.x + 0.35, c.y - 0.45, c.z + 0.3);
+  camera.position.set(c.x + 0.9 * r, c.y - 1.6 * r, c.z + 1.1 * r);
   controls.update();
 }
 
@@ -368,7 +395,7 @@ function onMessage(topic, m) {
     case 'hand_state': {
       const h = hand(m.hand, m.cluster);
       h.setState(m);
-      frameCamera(m.poses);
+      frameCamera();
       if (m.hand === Math.min(...hands.keys())) {
         history.push({ ...m.times_us, scene: sceneStepUs });
         if (history.length > 100) history.shift();
@@ -483,8 +510,8 @@ async function startOffline() {
         } else {
           h.ghost.visible = false;
         }
-        if (flat) frameCamera(poses);
       });
+      frameCamera();
       godhand.offline = { frame: data.frames[this.index], index: this.index, frames: data.frames.length, hands: data.hands.length,
         has_targets: data.has_targets };
     },
