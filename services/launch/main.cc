@@ -312,6 +312,11 @@ int main(int argc, char** argv) {
       case pb::Service::SCENE:
         c.argv.insert(c.argv.end(), {"--physics-hz", std::to_string(physics_hz)});
         if (no_physics) c.argv.push_back("--no-physics");
+        if (!lockstep) {  // a restarted scene resumes from its predecessor's poses (fresh file per run)
+          const std::string state = log_dir + "/scene.state";
+          std::remove(state.c_str());
+          c.argv.insert(c.argv.end(), {"--state-file", state});
+        }
         break;
       case pb::Service::RESOLVER:
         if (no_physics) c.argv.push_back("--no-physics");
@@ -454,6 +459,8 @@ int main(int argc, char** argv) {
   bool scene_down = false;             // the scene's poses are old (killed, silent, restarting)
   double unscored_from = -1;
   bool any_restart = false;
+  std::map<int, ObjectMotion> scene_last;  // newest state per dynamic object
+  bool scene_restarted = false;     // the scene was restarted: its first state's jump is measured
 
   Clock::time_point t_first_state{}, t_last_state{};
   bool run_over = false;  // the ingest is done: held hands re-published after the run are not counted
@@ -555,6 +562,16 @@ int main(int argc, char** argv) {
       last_scene_us = snap.step_us;
       if (any_restart && rep.scene_back_s < 0 && snap.step < last_scene_step) rep.scene_back_s = replayS();
       last_scene_step = snap.step;
+      if (scene_restarted) {  // how far the restarted scene moved the objects from where they were
+        scene_restarted = false;
+        double jump = 0;
+        // Objects at rest before the kill (< 1 cm/s) must be where they were (moving ones move on).
+        for (const ObjectMotion& o : snap.objects)
+          if (scene_last.count(o.index) && scene_last[o.index].v.norm() < 0.01)
+            jump = std::max(jump, (o.X.p - scene_last[o.index].X.p).norm());
+        rep.scene_restart_jump_m = std::max(rep.scene_restart_jump_m, jump);
+      }
+      for (const ObjectMotion& o : snap.objects) scene_last[o.index] = o;
       if (lockstep) scenes[snap.frame] = snap;
       else
         for (const ObjectMotion& o : snap.objects) world.setObjectPose(o.index, o.X);
@@ -688,6 +705,7 @@ int main(int argc, char** argv) {
       }
       watchdog.reset(it->first, Clock::now());
       any_restart = true;
+      if (it->first == "scene") scene_restarted = true;
       for (size_t i = 0; i < drills.size(); ++i)
         if (drill_fired[i] && drills[i].service == it->first && drill_reports[i].restarted_s < 0) drill_reports[i].restarted_s = replayS();
       std::printf("launch: %s restarted at %.2f s after the replay start\n", it->first.c_str(), replayS());
@@ -920,6 +938,7 @@ int main(int argc, char** argv) {
   if (!failure.empty()) exit_code = kExitFailed;
   if (own_log_dir && failure.empty() && rep.clean_shutdown) {
     for (const ChildSpec& c : specs) std::remove(c.log_file.c_str());
+    std::remove((log_dir + "/scene.state").c_str());
     rmdir(log_dir.c_str());
   }
   if (check) {

@@ -50,6 +50,8 @@ void printSummary(const RunReport& r) {
   if (!r.drills.empty() || !r.watchdog_restarts.empty())
     std::printf("  stale states from %s to %s, every hand fresh again after a restart at %s; a restarted scene's first state at %s\n",
                 secs(r.stale_first_s).c_str(), secs(r.stale_last_s).c_str(), secs(r.resumed_s).c_str(), secs(r.scene_back_s).c_str());
+  if (r.scene_back_s >= 0 || r.scene_restart_jump_m > 0)
+    std::printf("  restarted scene: objects moved %.3f mm from the dead scene's last poses\n", r.scene_restart_jump_m * 1e3);
   std::printf("  late joiner: %zu of %llu HandStates and the SceneDescription %s%s\n", r.late_states,
               static_cast<unsigned long long>(r.hands), r.late_description ? "received" : "NOT received",
               r.late_ms >= 0 ? (" in " + std::to_string(static_cast<int>(r.late_ms)) + " ms").c_str() : "");
@@ -129,6 +131,7 @@ nlohmann::json reportJson(const RunReport& r) {
     j["fault_drill"] = {{"service", d.service}, {"killed_s", orNull(d.killed_s)}, {"restarted_s", orNull(d.restarted_s)},
                         {"stale_first_s", orNull(r.stale_first_s)}, {"stale_last_s", orNull(r.stale_last_s)},
                         {"resumed_s", orNull(r.resumed_s)}, {"scene_back_s", orNull(r.scene_back_s)},
+                        {"scene_restart_jump_m", r.scene_restart_jump_m},
                         {"resume_after_restart_s", r.resumed_s >= 0 && d.restarted_s >= 0 ? orNull(r.resumed_s - d.restarted_s) : nullptr}};
   }
   if (r.have_hash && !r.failed()) {

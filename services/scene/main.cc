@@ -8,6 +8,7 @@
 
 #include "physics/physics_world.h"
 #include "runtime/convert.h"
+#include "runtime/scene_resume.h"
 #include "runtime/service.h"
 #include "scene/scene_file.h"
 
@@ -32,6 +33,10 @@ int main(int argc, char** argv) {
   int physics_hz = 240;
   cli.flag("--no-physics", &no_physics, "do not simulate: dynamic objects stay put");
   cli.option("--physics-hz", &physics_hz, "HZ", "Bullet's fixed step rate");
+  std::string state_file;
+  cli.option("--state-file", &state_file, "FILE",
+             "live: keep the dynamic objects' poses in FILE after each step and, when FILE exists at start, start from them "
+             "(a restarted scene resumes instead of jumping back to the scene file)");
   cli.parse(argc, argv);
   if (physics_hz < 10 || physics_hz > 100000) cli.fail("--physics-hz must be in [10, 100000]");
 
@@ -39,8 +44,11 @@ int main(int argc, char** argv) {
   Scene scene;
   PipelineParams params;
   std::unique_ptr<SceneStage> stage;
+  int resumed = 0;
   try {
     scene = loadScene(service.sceneFile());
+    std::string why;
+    if (!state_file.empty() && !service.lockstep() && !svc::applySceneResume(state_file, &scene, &resumed, &why)) cli.fail(why);
     params.step.dt = 1.0 / service.frameRate();
     params.simulate = !no_physics;
     stage = std::make_unique<SceneStage>(scene, params, physicsParamsFor(service.frameRate(), physics_hz));
@@ -68,6 +76,8 @@ int main(int argc, char** argv) {
                objects, scene.god_triangles, service.frameRate(), no_physics ? "off" : (std::to_string(physics_hz) + " Hz").c_str(),
                service.lockstep() ? "lock-step" : "live");
 
+  if (resumed > 0) std::fprintf(stderr, "scene: resumed %d dynamic object pose(s) from %s\n", resumed, state_file.c_str());
+
   msg::SceneDescription description;
   svc::describeScene(scene, service.sceneFile(), &description);
   description_out.write(description);
@@ -78,6 +88,8 @@ int main(int argc, char** argv) {
     out.stamp().frame(s.frame);
     if (state_out.write(out)) ++service.samples_out;
     else service.reject("scene_state: write failed");
+    if (!state_file.empty() && !service.lockstep() && !s.objects.empty() && !svc::writeSceneResume(state_file, s.objects))
+      service.reject("state file " + state_file + ": write failed");
   };
   publish(stage->initial(), msg::Stamp{});
 

@@ -276,6 +276,14 @@ def case_kill(service, recording):
     delivery_checks(j)
     check(j.get("penetration_max_m", 1) <= j.get("margin_m", 0),
           f"penetration-free against the last scene throughout ({j.get('penetration_max_m')} m)")
+    if service == "scene":
+        log = os.path.join(TMP, "logs", "scene.log")
+        text = open(log).read() if os.path.exists(log) else ""
+        check("resumed" in text, "the restarted scene resumed its objects from the dead scene's last poses (not the scene file)")
+        # Reported, not asserted yet: objects at rest before the kill were seen up to 10 cm away in
+        # the restarted scene's first state (not understood; see the issue 13 report).
+        print(f"note: largest move of an object at rest across the restart: {d.get('scene_restart_jump_m')} m")
+        check(j.get("penetration_unscored_states", 0) > 0, "penetration not scored against the dead scene's poses")
     common_checks(j)
 
 
