@@ -176,6 +176,9 @@ int main(int argc, char** argv) {
   const SteadyClock::time_point run_start = SteadyClock::now();
   auto elapsed = [&] { return std::chrono::duration<double>(SteadyClock::now() - run_start).count(); };
   bridges::SilenceMonitor silence_monitor(silence);
+  bridges::TrackerFrame f_newer;
+  std::uint64_t superseded = 0;
+  if (live_source) std::fprintf(stderr, "ingest: live source %s: receiving\n", source_spec.c_str());
   std::map<std::string, std::uint64_t> source_rejects;  // reasons already passed to service.reject
   auto syncRejects = [&] {
     for (const auto& [reason, n] : source->stats().by_reason)
@@ -203,6 +206,12 @@ int main(int argc, char** argv) {
     if (!live_source) return source->next(&f) ? 1 : 0;
     for (;;) {
       if (source->next(&f)) {
+        // Real time: when several frames queued up (a burst, or the start barrier), only the
+        // newest is published; the others are counted as superseded.
+        while (source->next(&f_newer)) {
+          std::swap(f, f_newer);
+          ++superseded;
+        }
         if (silence_monitor.frame(elapsed()))
           std::fprintf(stderr, "ingest: source %s delivers again after a silence\n", source_spec.c_str());
         syncRejects();
@@ -285,9 +294,10 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "ingest: source done: %llu frames; %s\n", static_cast<unsigned long long>(ss.frames), ss.detail.c_str());
   std::string by_reason;
   for (const auto& [reason, n] : ss.by_reason) by_reason += (by_reason.empty() ? "" : ", ") + reason + " " + std::to_string(n);
-  std::fprintf(stderr, "ingest: source %s: received %llu, accepted %llu, rejected %llu (%s), silences %llu\n", source_spec.c_str(),
+  std::fprintf(stderr, "ingest: source %s: received %llu, accepted %llu, rejected %llu (%s), superseded %llu, silences %llu\n", source_spec.c_str(),
                static_cast<unsigned long long>(ss.received), static_cast<unsigned long long>(ss.frames),
                static_cast<unsigned long long>(ss.rejected), by_reason.empty() ? "none" : by_reason.c_str(),
+               static_cast<unsigned long long>(superseded),
                static_cast<unsigned long long>(silence_monitor.silences()));
   if (recorder) {
     std::fprintf(stderr, "ingest: recorded %llu datagrams to %s%s\n", static_cast<unsigned long long>(recorder->records()), record.c_str(),
