@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <future>
 #include <memory>
+#include <mutex>
 
 #include "common/cli.h"
 #include "common/lab_config.h"
@@ -16,10 +17,12 @@
 #include "leap/leap_recording.h"
 #include "pipeline/collision_world.h"
 #include "runtime/convert.h"
+#include "runtime/service.h"
 #include "scene/scene_file.h"
 #include "viewer/encode.h"
 #include "viewer/offline.h"
 #include "viewer/server.h"
+#include "viewer/synthetic.h"
 
 using namespace godhand;
 using namespace godhand::viewer;
@@ -60,6 +63,7 @@ int main(int argc, char** argv) {
   double max_queue_mb = 4.0;
   int display_triangles = 12000;
   bool quiet = false;
+  std::string synthetic;
   cli.option("--lab", &lab_file, "FILE", "lab configuration (domain, profiles) of the live mode");
   cli.option("--domain", &domain, "N", "DDS domain id 0..232; -1 = the lab's");
   cli.option("--profiles", &profiles, "FILE", "Fast DDS XML profiles (default: the lab's, else deploy/dds/godhand-local.xml)");
@@ -72,6 +76,9 @@ int main(int argc, char** argv) {
   cli.option("--scene", &scene_file, "FILE", "offline: the scene file the bench ran on (default: the lab's)");
   cli.multi("--mesh", &meshes, "FILE[:SIZE_M]", "offline: the bench's ad-hoc mesh scene (needs --recording)");
   cli.option("--recording", &recording, "FILE", "offline with --mesh: the recording the meshes were centred on");
+  cli.option("--synthetic", &synthetic, "CLUSTER",
+             "live: the page drives this cluster's hand (keys / Shift-drag): the viewer publishes its HandTarget at the lab's\n"
+             "frame rate; run the services with a silent tracker source (see README, Viewer)");
   cli.flag("--quiet", &quiet, "no per-second line on stderr");
   cli.epilog("Exit status: 0 after SIGINT/SIGTERM, 2 on a bad configuration (one line on stderr).");
   cli.parse(argc, argv);
@@ -85,11 +92,30 @@ int main(int argc, char** argv) {
   if (!offline && (!meshes.empty() || !recording.empty())) cli.fail("--mesh and --recording are for the offline mode (--poses FILE)");
   if (!scene_file.empty() && !meshes.empty()) cli.fail("--scene and --mesh exclude each other");
   if (!meshes.empty() && recording.empty()) cli.fail("--mesh needs the --recording it was centred on");
+  if (offline && !synthetic.empty()) cli.fail("--synthetic is for the live mode");
 
   LabConfig lab;
   if (!offline || (scene_file.empty() && meshes.empty())) {
     try {
       lab = loadLab(lab_file);
+    } catch (const std::exception& e) {
+      cli.fail(e.what());
+    }
+  }
+
+  // The synthetic hand: its cluster, model and start pose (above the bunny of the lab's scene).
+  int synthetic_hand = -1;
+  HandModel synthetic_model;
+  Pose synthetic_start;
+  double synthetic_rate = 60.0;
+  if (!synthetic.empty()) {
+    for (const LabCluster& c : lab.clusters)
+      if (c.name == synthetic) synthetic_hand = c.index;
+    if (synthetic_hand < 0) cli.fail("--synthetic " + synthetic + ": no such cluster in " + lab.file);
+    try {
+      synthetic_model = HandModel::loadFile(lab.clusters[static_cast<std::size_t>(synthetic_hand)].model);
+      synthetic_start = syntheticStart(loadScene(lab.scene));
+      if (!lab.recording.empty()) synthetic_rate = svc::recordingFrameRate(lab.recording);
     } catch (const std::exception& e) {
       cli.fail(e.what());
     }
@@ -171,7 +197,10 @@ int main(int argc, char** argv) {
   std::unique_ptr<Reader<msg::SceneState>> scenes_p;
   std::unique_ptr<Reader<msg::ContactForces>> forces_p;
   std::unique_ptr<Reader<msg::ServiceStatus>> status_p;
+  std::unique_ptr<dds::Writer<msg::HandTarget>> synthetic_p;
   try {
+    if (synthetic_hand >= 0)
+      synthetic_p = std::make_unique<dds::Writer<msg::HandTarget>>(*participant, topic::kHandTarget, profile::kStreamLive);
     states_p = std::make_unique<Reader<msg::HandState>>(*participant, topic::kHandState, profile::kState);
     targets_p = std::make_unique<Reader<msg::HandTarget>>(*participant, topic::kHandTarget, profile::kStreamLive);
     descriptions_p = std::make_unique<Reader<msg::SceneDescription>>(*participant, topic::kSceneDescription, profile::kState);
@@ -182,7 +211,24 @@ int main(int argc, char** argv) {
     participant.reset();
     cli.fail(e.what());
   }
-  server->setRoute("/mode.json", "application/json", shared(json{{"mode", "live"}, {"domain", dopt.domain}}.dump()));
+  server->setRoute("/mode.json", "application/json",
+                   shared(json{{"mode", "live"}, {"domain", dopt.domain}, {"synthetic", synthetic_hand >= 0 ? json(synthetic_hand) : json(nullptr)}}.dump()));
+  // Page commands for the synthetic hand arrive on the server thread: the newest offset is kept.
+  std::mutex synthetic_mutex;
+  Vec3 synthetic_offset = Vec3::Zero();
+  std::uint64_t synthetic_commands = 0, synthetic_rejected = 0;
+  server->onClientPublish([&](const ClientPublish& c) {
+    int h = -1;
+    Vec3 off;
+    std::string why;
+    std::lock_guard<std::mutex> lock(synthetic_mutex);
+    if (synthetic_hand < 0 || !parseSyntheticCommand(c.payload, &h, &off, &why) || h != synthetic_hand) {
+      ++synthetic_rejected;
+      return;
+    }
+    ++synthetic_commands;
+    synthetic_offset = off;
+  });
   server->start();
   std::printf("viewer: http://%s:%d/\n", bind.c_str(), server->port());
   std::fflush(stdout);
@@ -210,11 +256,28 @@ int main(int argc, char** argv) {
   auto elapsed_since = [](std::chrono::steady_clock::time_point t) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
   };
+  const std::uint64_t synthetic_run = static_cast<std::uint64_t>(svc::nowNs());
+  std::uint64_t synthetic_frame = 0;
+  auto next_synthetic = std::chrono::steady_clock::now();
+  msg::HandTarget synthetic_out;
   auto last_print = std::chrono::steady_clock::now();
   auto last_stats = last_print;
   std::uint64_t printed_state = 0;
   while (!stopRequested()) {
-    participant->waitForData(std::chrono::steady_clock::now() + std::chrono::milliseconds(50));
+    participant->waitForData(std::min(std::chrono::steady_clock::now() + std::chrono::milliseconds(50),
+                                      synthetic_p ? next_synthetic : std::chrono::steady_clock::time_point::max()));
+    if (synthetic_p && std::chrono::steady_clock::now() >= next_synthetic) {
+      next_synthetic += std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(1.0 / synthetic_rate));
+      if (next_synthetic < std::chrono::steady_clock::now()) next_synthetic = std::chrono::steady_clock::now();
+      Pose X = synthetic_start;
+      {
+        std::lock_guard<std::mutex> lock(synthetic_mutex);
+        X.p += synthetic_offset;
+      }
+      syntheticTarget(synthetic_model, X, static_cast<std::uint32_t>(synthetic_hand), synthetic, synthetic_run, ++synthetic_frame,
+                      svc::nowNs(), &synthetic_out);
+      synthetic_p->write(synthetic_out);
+    }
     while (descriptions_p->take(sd)) {
       ++n_desc;
       pending_desc = sd;
@@ -337,6 +400,7 @@ int main(int argc, char** argv) {
   scenes_p.reset();
   forces_p.reset();
   status_p.reset();
+  synthetic_p.reset();
   participant.reset();
   server->stop();
   const Hub::Stats s = server->stats();
@@ -349,5 +413,9 @@ int main(int argc, char** argv) {
                static_cast<unsigned long long>(s.opened), static_cast<unsigned long long>(s.refused), static_cast<unsigned long long>(s.sent),
                static_cast<unsigned long long>(s.dropped), static_cast<unsigned long long>(server->inboxDropped()),
                static_cast<unsigned long long>(s.rejected));
+  if (synthetic_hand >= 0)
+    std::fprintf(stderr, "viewer: synthetic hand '%s': %llu targets published, %llu page commands (%llu rejected)\n", synthetic.c_str(),
+                 static_cast<unsigned long long>(synthetic_frame), static_cast<unsigned long long>(synthetic_commands),
+                 static_cast<unsigned long long>(synthetic_rejected));
   return 0;
 }

@@ -499,6 +499,50 @@ async function caseAbuse() {
   console.log(v.proc.err.trim().split('\n').slice(-1)[0]);
 }
 
+// No tracker: the page drives the right hand (godhand-viewer --synthetic right) while the services
+// run with a silent live tracker source. Pressing Q moves the target down into the bunny: the God
+// hand follows, then stops on the surface (no penetration) while its target goes on down.
+async function caseSynthetic() {
+  const v = await startViewer(['--domain', DOMAIN, '--synthetic', 'right']);
+  await openBrowser();
+  const page = await openPage(v.url);
+  await page.waitForFunction(() => window.godhand && window.godhand.connected, null, { timeout: 20000 });
+  const udp = 20000 + Number(DOMAIN);
+  const l = launch(['--source', `dtrack://127.0.0.1:${udp}`, '--duration', '15']);
+  await page.waitForFunction(() => window.godhand.drawn[0] && !window.godhand.drawn[0].stale && window.godhand.drawn[0].frame > 20, null, { timeout: 60000 });
+  const at = async () => page.evaluate(() => { const d = window.godhand.drawn[0]; const s = document.getElementById('hand-0');
+    return { z: d.poses[0][2], tz: d.ghost[0][2], frame: d.frame, text: s ? s.textContent : '' }; });
+  const start = await at();
+  check(true, `the synthetic right hand is drawn (palm at z ${start.z.toFixed(3)} m, target z ${start.tz.toFixed(3)} m)`);
+  await page.keyboard.down('e');
+  await sleep(600);
+  await page.keyboard.up('e');
+  await sleep(600);
+  const up = await at();
+  check(up.tz > start.tz + 0.01 && up.z > start.z + 0.01, `E moved the target and the God hand up (target ${start.tz.toFixed(3)} -> ${up.tz.toFixed(3)}, God ${start.z.toFixed(3)} -> ${up.z.toFixed(3)})`);
+  await page.keyboard.down('q');
+  await sleep(4000);
+  await page.keyboard.up('q');
+  await sleep(800);
+  const down = await at();
+  check(down.tz < down.z - 0.02, `Q pushed the target into the bunny (target z ${down.tz.toFixed(3)} m) and the God hand stopped above it (z ${down.z.toFixed(3)} m)`);
+  const rec = await page.evaluate(() => window.godhand.synthetic.sent);
+  check(rec > 10, `the page sent ${rec} synthetic commands`);
+  const penPage = await page.evaluate(() => window.godhand.drawn[0].penetrationMax);
+  await stop(l);
+  const r = await l.done;
+  // The viewer's penetration figure against the launcher's own monitor (same states, same scene).
+  const penLaunch = r.json.penetration_max_m;
+  check(typeof penPage === 'number' && typeof penLaunch === 'number' && Math.abs(penPage - penLaunch) < 2e-5,
+    `the page's penetration figure (max ${(1000 * penPage).toFixed(3)} mm) agrees with the launcher's monitor (${(1000 * penLaunch).toFixed(3)} mm)`);
+  console.log(`figure: penetration while pushing the synthetic hand into the bunny: ${(1000 * penLaunch).toFixed(3)} mm (margin 0.1 mm)`);
+  check(page.errors.length === 0, `no page errors (${page.errors.slice(0, 3).join(' | ')})`);
+  await browser.close();
+  const vr = await stop(v.proc);
+  check(vr.code === 0, `godhand-viewer stopped cleanly (${vr.code})`);
+  console.log(v.proc.err.trim().split('\n').slice(-1)[0]);
+}
+
 async function caseMeasure() {
   const runs = Number(process.env.RUNS || 3);
   const v = await startViewer(['--domain', DOMAIN]);
@@ -563,7 +607,7 @@ print(' '.join(out))`;
   return names;
 }
 
-const CASES = { live: caseLive, poses: casePoses, offline: caseOffline, abuse: caseAbuse, measure: caseMeasure };
+const CASES = { live: caseLive, poses: casePoses, offline: caseOffline, abuse: caseAbuse, synthetic: caseSynthetic, measure: caseMeasure };
 if (!CASES[CASE]) { console.log(`unknown case ${CASE}`); process.exit(2); }
 const watchdog = setTimeout(() => { console.log('FAILED: the case took longer than 170 s'); cleanup().then(() => process.exit(1)); }, 170000);
 async function cleanup() {

@@ -8,6 +8,7 @@
 
 #include "viewer/feed.h"
 #include "viewer/offline.h"
+#include "viewer/synthetic.h"
 
 using namespace godhand;
 using namespace godhand::viewer;
@@ -255,4 +256,37 @@ TEST(ViewerMesh, BinaryLayoutRoundTrips) {
   std::memcpy(&z, &bits, 4);
   EXPECT_EQ(z, -2.0f);
   EXPECT_EQ(le32(b, 48 + 8), 2u);
+}
+
+TEST(ViewerSynthetic, CommandsAreParsedStrictly) {
+  int hand = -1;
+  Vec3 off;
+  std::string why;
+  ASSERT_TRUE(parseSyntheticCommand(R"({"hand":1,"offset":[0.01,-0.02,0.5]})", &hand, &off, &why)) << why;
+  EXPECT_EQ(hand, 1);
+  EXPECT_DOUBLE_EQ(off.y(), -0.02);
+  for (const char* bad : {"", "[]", R"({"offset":[0,0,0]})", R"({"hand":-1,"offset":[0,0,0]})", R"({"hand":0,"offset":[0,0]})",
+                          R"({"hand":0,"offset":[0,0,2]})", R"({"hand":0,"offset":[0,"x",0]})", R"({"hand":0.5,"offset":[0,0,0]})"}) {
+    EXPECT_FALSE(parseSyntheticCommand(bad, &hand, &off, &why)) << bad;
+    EXPECT_FALSE(why.empty());
+  }
+}
+
+TEST(ViewerSynthetic, TargetIsTheModelAtRestAtTheCommandedFrame) {
+  const HandModel model = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  Pose X;
+  X.p = Vec3(0.1, 0.2, 0.3);
+  msg::HandTarget t;
+  syntheticTarget(model, X, 0, "right", 7, 3, 123, &t);
+  const std::vector<Pose> rest = model.restPoses(X);
+  ASSERT_EQ(t.targets().size(), model.bodies.size());
+  ASSERT_EQ(t.driven().size(), model.bodies.size());
+  EXPECT_TRUE(t.tracked());
+  EXPECT_EQ(t.stamp().frame(), 3u);
+  EXPECT_EQ(t.stamp().run(), 7u);
+  for (std::size_t b = 0; b < rest.size(); ++b) {
+    EXPECT_EQ(t.targets()[b].p()[0], rest[b].p.x());
+    EXPECT_EQ(t.targets()[b].q()[0], rest[b].q.w());
+    EXPECT_TRUE(t.driven()[b]);
+  }
 }

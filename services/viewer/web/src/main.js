@@ -177,6 +177,7 @@ class HandView {
     this.godMat.emissive.setHex(marked ? 0x331010 : 0x000000);
     this.pendingRecv = s.recv_ns;
     this.pendingFrame = s.stamp.frame;
+    if (s.penetration_m !== null && s.penetration_m !== undefined) this.penMax = Math.max(this.penMax || 0, s.penetration_m);
     this.rate.tick();
   }
 
@@ -345,6 +346,7 @@ function recordDrawn() {
     const poses = h.godBodies.map((m) => { m.matrixWorld.decompose(p, q, s); return [p.x, p.y, p.z, q.w, q.x, q.y, q.z]; });
     const ghost = h.ghostBodies.map((m) => { m.matrixWorld.decompose(p, q, s); return [p.x, p.y, p.z, q.w, q.x, q.y, q.z]; });
     godhand.drawn[h.index] = { cluster: h.name, frame: h.pendingFrame, run: h.state.stamp.run, stale: h.state.stale, held: h.state.held,
+      penetrationMax: h.penMax === undefined ? null : h.penMax,
       poses, ghost, ghostVisible: h.ghost.visible };
     if (h.pendingRecv) {
       latencies.push((t - h.pendingRecv) / 1e6);
@@ -427,44 +429,35 @@ function startLive() {
   godhand.feed = feed;
 }
 
-// ---------- synthetic hand (no tracker): the page moves a hand's targets ----------
-// Press S to take over the lowest-numbered hand: its current targets (or God poses) are the
-// start, W/A/S/D/Q/E (x/y/z) or Shift-drag move them, and the viewer publishes them as that
-// hand's HandTarget on its DDS domain (godhand-viewer --synthetic). The ghost shows them at once.
+// ---------- synthetic hand (no tracker): the page moves a hand's target ----------
+// With godhand-viewer --synthetic CLUSTER the viewer publishes that cluster's HandTarget (the hand
+// at rest above the bunny, moved by an offset); the page sets the offset: W/S (y), A/D (x), Q/E
+// (down/up) or Shift-drag in the view plane. The ghost shows the target, the solid hand where the
+// method lets it go.
 const synthetic = {
-  hand: null, base: null, offset: new THREE.Vector3(), keys: new Set(), lastSent: 0, frame: 0, sent: 0,
-  owns(i) { return this.hand === i; },
-  toggle() {
-    if (this.hand !== null) { this.hand = null; return; }
-    const h = [...hands.values()].sort((a, b) => a.index - b.index)[0];
-    if (!h || !h.state) return;
-    this.hand = h.index;
-    this.base = (h.target && h.target.tracked ? h.target.targets : h.state.poses).map((p) => [...p]);
-    this.offset.set(0, 0, 0);
-  },
+  hand: null, offset: new THREE.Vector3(), keys: new Set(), lastSent: 0, sentOffset: null, sent: 0,
+  owns() { return false; },
   step() {
     if (this.hand === null || !feed) return;
-    const speed = 0.004;
-    const k = this.keys;
+    const speed = 0.0015, k = this.keys;
     if (k.has('w')) this.offset.y += speed; if (k.has('s')) this.offset.y -= speed;
     if (k.has('d')) this.offset.x += speed; if (k.has('a')) this.offset.x -= speed;
     if (k.has('e')) this.offset.z += speed; if (k.has('q')) this.offset.z -= speed;
+    this.offset.clampScalar(-0.95, 0.95);
     const t = performance.now();
-    if (t - this.lastSent < 15) return;
-    this.lastSent = t;
-    const targets = this.base.map((p) => [p[0] + this.offset.x, p[1] + this.offset.y, p[2] + this.offset.z, p[3], p[4], p[5], p[6]]);
-    const h = hands.get(this.hand);
-    h.setTargets(targets, null, true);
-    feed.publish('godhand/synthetic_target', { hand: this.hand, frame: ++this.frame, targets });
-    this.sent++;
+    const changed = !this.sentOffset || !this.sentOffset.equals(this.offset);
+    if (t - this.lastSent < (changed ? 30 : 500)) return;
+    if (feed.publish('godhand/synthetic_target', { hand: this.hand, offset: this.offset.toArray() })) {
+      this.lastSent = t;
+      this.sentOffset = this.offset.clone();
+      this.sent++;
+    }
   },
 };
 godhand.synthetic = synthetic;
-window.addEventListener('keydown', (e) => {
-  if (e.key === 'S' || (e.key === 's' && synthetic.hand === null)) { synthetic.toggle(); return; }
-  synthetic.keys.add(e.key.toLowerCase());
-});
+window.addEventListener('keydown', (e) => synthetic.keys.add(e.key.toLowerCase()));
 window.addEventListener('keyup', (e) => synthetic.keys.delete(e.key.toLowerCase()));
+window.addEventListener('blur', () => synthetic.keys.clear());
 let dragFrom = null;
 renderer.domElement.addEventListener('pointerdown', (e) => { if (e.shiftKey && synthetic.hand !== null) { dragFrom = [e.clientX, e.clientY]; controls.enabled = false; } });
 window.addEventListener('pointerup', () => { dragFrom = null; controls.enabled = true; });
@@ -530,6 +523,13 @@ async function startOffline() {
 
 fetch('mode.json').then((r) => r.json()).then((m) => {
   godhand.mode = m.mode;
+  const help = document.getElementById('synthetic-help');
+  if (m.mode === 'live' && m.synthetic !== null && m.synthetic !== undefined) {
+    synthetic.hand = m.synthetic;
+    help.innerHTML = 'synthetic hand: <b>W/A/S/D</b> move, <b>Q/E</b> down/up, or <b>Shift</b>-drag';
+  } else {
+    help.style.display = 'none';
+  }
   if (m.mode === 'offline') startOffline(); else startLive();
 });
 animate();
