@@ -543,6 +543,31 @@ async function caseSynthetic() {
   console.log(v.proc.err.trim().split('\n').slice(-1)[0]);
 }
 
+// The README's picture: the live page on the bundled two-hand recording, taken when both hands
+// are fresh and in contact (OUT=file.png; not a test).
+async function caseScreenshot() {
+  const out = process.env.OUT || path.join(TMP, 'viewer.png');
+  const v = await startViewer(['--domain', DOMAIN]);
+  await openBrowser();
+  const page = await openPage(v.url + '?aa=1&scale=1', { width: 1280, height: 760 });
+  await page.waitForFunction(() => window.godhand && window.godhand.connected, null, { timeout: 20000 });
+  const l = launch(['--recording', REC2, '--speed', '0.25']);
+  let best = -1;
+  let ended = false;
+  l.done.then(() => { ended = true; });
+  while (!ended) {
+    const d = await page.evaluate(() => ({ n: Object.values(window.godhand.drawn).filter((x) => !x.stale && !x.held && x.ghostVisible).length, c: window.godhand.contacts }));
+    if (d.n === 2 && d.c > best) {
+      best = d.c;
+      await page.screenshot({ path: out });
+    }
+    await sleep(250);
+  }
+  check(best >= 0, `screenshot with both hands fresh and ${best} contacts: ${out}`);
+  await browser.close();
+  await stop(v.proc);
+}
+
 async function caseMeasure() {
   const runs = Number(process.env.RUNS || 3);
   const v = await startViewer(['--domain', DOMAIN]);
@@ -607,7 +632,7 @@ print(' '.join(out))`;
   return names;
 }
 
-const CASES = { live: caseLive, poses: casePoses, offline: caseOffline, abuse: caseAbuse, synthetic: caseSynthetic, measure: caseMeasure };
+const CASES = { live: caseLive, poses: casePoses, offline: caseOffline, abuse: caseAbuse, synthetic: caseSynthetic, screenshot: caseScreenshot, measure: caseMeasure };
 if (!CASES[CASE]) { console.log(`unknown case ${CASE}`); process.exit(2); }
 const watchdog = setTimeout(() => { console.log('FAILED: the case took longer than 170 s'); cleanup().then(() => process.exit(1)); }, 170000);
 async function cleanup() {

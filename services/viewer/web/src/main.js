@@ -223,12 +223,13 @@ function hand(index, name) {
 const contactRoot = new THREE.Group();
 scene.add(contactRoot);
 const contactMat = new THREE.MeshBasicMaterial({ color: 0xffe14d });
-const contactGeom = new THREE.SphereGeometry(0.0022, 8, 6);
+const contactGeom = new THREE.SphereGeometry(0.003, 8, 6);
 const arrows = [], points = [];
-const FORCE_SCALE = 0.02;  // m per N
+const FORCE_SCALE = 0.03;  // m per N (plus 1.5 cm so that small forces show)
 function setContacts(list) {
   while (arrows.length < list.length && arrows.length < 320) {
-    const a = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0.02, 0xff3030, 0.006, 0.004);
+    const a = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0.02, 0xff2020, 0.007, 0.005);
+    a.line.material.linewidth = 2;
     const p = new THREE.Mesh(contactGeom, contactMat);
     arrows.push(a); points.push(p);
     contactRoot.add(a, p);
@@ -243,7 +244,7 @@ function setContacts(list) {
     a.position.set(c.p[0], c.p[1], c.p[2]);
     dir.set(c.n[0], c.n[1], c.n[2]).normalize();
     a.setDirection(dir);
-    a.setLength(Math.min(0.08, Math.max(0.008, FORCE_SCALE * (c.lambda || 0))), 0.006, 0.004);
+    a.setLength(Math.min(0.08, 0.015 + FORCE_SCALE * Math.max(0, c.lambda || 0)), 0.007, 0.005);
   });
   godhand.contacts = list.length;
 }
@@ -270,20 +271,22 @@ function drawChart() {
   chart.clearRect(0, 0, w, hgt);
   const n = history.length;
   if (!n) return;
-  const max = Math.max(200, ...history.map((h) => STAGES.reduce((s, [k]) => s + (h[k] || 0), 0)));
+  // Scaled to the 95th percentile of the frame totals (one slow frame would flatten every bar).
+  const totals = history.map((h) => STAGES.reduce((s, [k]) => s + (h[k] || 0), 0)).sort((x, y) => x - y);
+  const max = Math.max(200, totals[Math.floor(0.95 * (totals.length - 1))]);
   const bw = w / 100;
   history.forEach((h, i) => {
     let y = hgt;
     for (const [k, c] of STAGES) {
       const v = ((h[k] || 0) / max) * (hgt - 12);
       chart.fillStyle = c;
-      chart.fillRect(i * bw, y - v, Math.max(1, bw - 0.5), v);
+      chart.fillRect(i * bw, Math.max(12, y - v), Math.max(1, bw - 0.5), Math.max(0, Math.min(v, y - 12)));
       y -= v;
     }
   });
   chart.fillStyle = '#ccc';
   chart.font = '10px sans-serif';
-  chart.fillText(`per-stage time, µs (max ${max.toFixed(0)})`, 4, 10);
+  chart.fillText(`per-stage time per frame, µs (scale ${max.toFixed(0)})`, 4, 10);
 }
 
 function updateHud() {
