@@ -10,6 +10,7 @@ pkgs=(
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools default-jre-headless
   libgtest-dev libgmock-dev nlohmann-json3-dev libbenchmark-dev
   libwebsocketpp-dev libboost-dev chromium  # godhand-viewer: its server, and the browser its tests drive
+  clang libfuzzer-14-dev libclang-rt-14-dev  # libFuzzer targets of the parsers (tests/fuzz/run_fuzz.sh)
 )
 missing=()
 for p in "${pkgs[@]}"; do
