@@ -229,11 +229,14 @@ ParseResult parseDatagram(std::string_view bytes, Datagram* out, const ParseLimi
     } else if (bit == kLineTs2) {
       std::uint64_t sec = 0, usec = 0, lat = 0;
       if (cur.readUint(&sec) && cur.expect(' ') && cur.readUint(&usec) && cur.expect(' ') && cur.readUint(&lat)) {
-        if (usec >= 1000000 || sec > 100000000000ull) cur.error(Reject::kOutOfRange, "ts2 µs >= 1e6 or seconds too large");
-        d.has_ts2 = true;
-        d.ts2_us = static_cast<std::int64_t>(sec) * 1000000 + static_cast<std::int64_t>(usec);
-        d.latency_us = static_cast<std::int64_t>(lat);
-        if (!d.has_ts) d.ts = static_cast<double>(sec % 86400) + static_cast<double>(usec) * 1e-6;
+        if (usec >= 1000000 || sec > 100000000000ull) {  // (found by fuzz_dtrack: sec * 1e6 overflowed)
+          cur.error(Reject::kOutOfRange, "ts2 µs >= 1e6 or seconds too large");
+        } else {
+          d.has_ts2 = true;
+          d.ts2_us = static_cast<std::int64_t>(sec) * 1000000 + static_cast<std::int64_t>(usec);
+          d.latency_us = static_cast<std::int64_t>(lat);
+          if (!d.has_ts) d.ts = static_cast<double>(sec % 86400) + static_cast<double>(usec) * 1e-6;
+        }
       }
     } else if (bit == kLine6dcal || bit == kLineGlcal) {
       std::uint64_t n = 0;

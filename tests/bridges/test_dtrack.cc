@@ -509,3 +509,13 @@ TEST(Sources, CalibrationTextAndSilenceMonitor) {
   EXPECT_TRUE(m.poll(6.7));
   EXPECT_EQ(m.silences(), 2u);
 }
+
+// Found by fuzz_dtrack (tests/fuzz/regressions/dtrack/ts2-seconds-overflow.dtrack): ts2 seconds
+// beyond the range were multiplied into an int64 overflow before the range check stopped them.
+TEST(DtrackParse, RegressionTs2SecondsOverflow) {
+  Datagram d;
+  const ParseResult r = parseDatagram(slurp(std::string(GODHAND_TEST_DATA_DIR) + "/../fuzz/regressions/dtrack/ts2-seconds-overflow.dtrack"), &d);
+  EXPECT_FALSE(r.ok);
+  EXPECT_EQ(static_cast<int>(r.reason), static_cast<int>(Reject::kOutOfRange)) << r.detail;
+  EXPECT_FALSE(d.has_ts2);
+}

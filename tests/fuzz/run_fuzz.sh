@@ -1,0 +1,44 @@
+#!/bin/bash
+# Builds the libFuzzer targets of tests/fuzz/ with Debian's clang (-fsanitize=fuzzer,address,
+# undefined) and runs each for SECONDS on a copy of its committed seed corpus (tests/fuzz/corpus/
+# NAME). Exit 0: no crash; 1: a crash (the reproducer is kept in OUT_DIR/crash-*: add it to
+# tests/fuzz/regressions/NAME/ and fix the parser); 77: clang or libFuzzer is not installed.
+#   run_fuzz.sh SOURCE_DIR OUT_DIR SECONDS [TARGET...]
+# Longer run (documented in bridges/README.md): run_fuzz.sh . /tmp/fuzz 600 dtrack
+set -u
+SRC=$(cd "$1" && pwd); OUT=$2; SECS=$3; shift 3
+TARGETS=("$@"); [ ${#TARGETS[@]} -eq 0 ] && TARGETS=(dtrack leap)
+CXX=${FUZZ_CXX:-clang++}
+if ! command -v "$CXX" >/dev/null; then echo "SKIPPED: $CXX not installed"; exit 77; fi
+mkdir -p "$OUT"
+echo 'extern "C" int LLVMFuzzerTestOneInput(const unsigned char*, unsigned long) { return 0; }' > "$OUT/probe.cc"
+if ! "$CXX" -fsanitize=fuzzer "$OUT/probe.cc" -o "$OUT/probe" 2>/dev/null; then echo "SKIPPED: libFuzzer not available to $CXX"; exit 77; fi
+FLAGS=(-std=c++17 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
+       -I"$SRC/bridges" -I"$SRC/core" -isystem /usr/include/eigen3 -DNDEBUG)
+declare -A SOURCES=(
+  [dtrack]="$SRC/tests/fuzz/fuzz_dtrack.cc $SRC/bridges/dtrack/dtrack.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
+  [leap]="$SRC/tests/fuzz/fuzz_leap.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
+)
+status=0
+for t in "${TARGETS[@]}"; do
+  [ -n "${SOURCES[$t]:-}" ] || { echo "unknown fuzz target $t"; exit 2; }
+  echo "== building fuzz_$t"
+  # shellcheck disable=SC2086
+  if ! nice "$CXX" "${FLAGS[@]}" ${SOURCES[$t]} -o "$OUT/fuzz_$t"; then echo "FAILED: build of fuzz_$t"; exit 1; fi
+  corpus="$OUT/corpus_$t"; rm -rf "$corpus"; mkdir -p "$corpus"
+  cp "$SRC/tests/fuzz/corpus/$t/"* "$corpus/"
+  # Regression inputs (former crashes) must pass first.
+  if [ -d "$SRC/tests/fuzz/regressions/$t" ]; then
+    if ! "$OUT/fuzz_$t" "$SRC/tests/fuzz/regressions/$t/"* >"$OUT/regress_$t.log" 2>&1; then
+      echo "FAILED: a regression input of $t crashes"; tail -30 "$OUT/regress_$t.log"; status=1; continue
+    fi
+  fi
+  echo "== fuzzing fuzz_$t for ${SECS}s"
+  (cd "$OUT" && nice "$OUT/fuzz_$t" -max_total_time="$SECS" -seed=1 -max_len=8192 -timeout=10 -rss_limit_mb=1024 \
+     -print_final_stats=1 "$corpus" >"$OUT/fuzz_$t.log" 2>&1)
+  rc=$?
+  grep -E "stat::number_of_executed_units|stat::new_units_added" "$OUT/fuzz_$t.log" | sed "s/^/fuzz_$t: /"
+  if [ $rc -ne 0 ]; then echo "FAILED: fuzz_$t found a crash (exit $rc):"; grep -E "ERROR|SUMMARY|Test unit written" "$OUT/fuzz_$t.log" | head; status=1; fi
+done
+[ $status -eq 0 ] && echo "PASSED"
+exit $status
