@@ -75,6 +75,9 @@ RunVerdict evaluateRun(const RunFigures& f) {
   for (const std::string& s : f.dead_at_end) fail(s + " was not running at the end of the run");
   if (!f.late_joiner_ok) fail("the late joiner did not get every cluster's HandState and the SceneDescription");
   for (const std::string& d : f.drills_not_done) fail("drill " + d + " never fired");
+  if (!f.foreign.empty())
+    fail("another lab shares the DDS domain (" + f.foreign.front() + (f.foreign.size() > 1 ? ", ..." : "") +
+         "): its samples mix with this run's");
   return v;
 }
 

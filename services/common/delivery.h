@@ -52,6 +52,7 @@ struct RunFigures {
   std::vector<std::string> dead_at_end;     ///< services not running / silent when the run ended
   bool late_joiner_ok = false;
   std::vector<std::string> drills_not_done; ///< --kill drills that never fired
+  std::vector<std::string> foreign;         ///< services of another lab seen on the domain (mixed samples)
   std::string failure;                      ///< a run failure ("" = none)
   double penetration_max = 0.0, margin = 0.0, joint_gap_max = 0.0;
   long solver_failures = 0;

@@ -164,6 +164,29 @@ struct FrameHands {
   std::vector<unsigned char> have;
 };
 
+// The lab's profiles file with default publisher and subscriber profiles that put every writer
+// and reader in `partition` (Fast DDS takes a participant's default publisher / subscriber QoS,
+// partitions included, from the default data_writer / data_reader profile). Written to DIR;
+// returns its path. std::runtime_error when the file cannot be read or has no </profiles>.
+std::string writePartitionProfiles(const std::string& profiles, const std::string& partition, const std::string& dir) {
+  std::ifstream in(profiles);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  std::string xml = ss.str();
+  if (!in) throw std::runtime_error(profiles + ": cannot read");
+  const size_t end = xml.rfind("</profiles>");
+  if (end == std::string::npos) throw std::runtime_error(profiles + ": no </profiles>");
+  const std::string part = "<qos><partition><names><name>" + partition + "</name></names></partition></qos>";
+  xml.insert(end, "  <!-- added by godhand-launch --partition -->\n  <data_writer profile_name=\"godhand.partition\" is_default_profile=\"true\">" +
+                      part + "</data_writer>\n  <data_reader profile_name=\"godhand.partition\" is_default_profile=\"true\">" + part +
+                      "</data_reader>\n");
+  const std::string out_path = dir + "/profiles-" + partition + ".xml";
+  std::ofstream out(out_path);
+  out << xml;
+  if (!out) throw std::runtime_error(out_path + ": cannot write");
+  return out_path;
+}
+
 // Exit statuses (also in --help).
 constexpr int kExitFailed = 1;    // the run failed, or --check failed
 constexpr int kExitConfig = 2;    // bad configuration (Cli::fail)
@@ -188,6 +211,10 @@ int main(int argc, char** argv) {
   std::string host_name;  // --host: that lab host's services (and profiles) instead of this machine's
   cli.option("--host", &host_name, "NAME", "start the services of the lab's host NAME, with its profiles (default: this machine's)");
   cli.option("--domain", &domain, "N", "DDS domain id 0..232; -1 = the lab's");
+  std::string partition;
+  cli.option("--partition", &partition, "NAME",
+             "this launch's DDS partition: its services and monitor only match each other, not another lab on the domain "
+             "(subscribers must use the same partition; default: none, every lab on the domain matches)");
   cli.flag("--lockstep", &lockstep, "lock-step: deterministic, every stage waits for each frame's inputs");
   cli.option("--recording", &recording, "FILE", "tracker recording (default: the lab's)");
   cli.option("--source", &source_uri, "URI", "tracker source for the ingest (godhand-ingest --source), instead of the lab's recording");
@@ -228,6 +255,8 @@ int main(int argc, char** argv) {
   if (physics_hz < 10 || physics_hz > 100000) cli.fail("--physics-hz must be in [10, 100000]");
   if (domain < -1 || domain > 232) cli.fail("--domain must be in 0..232");
   if (!source_uri.empty() && !recording.empty()) cli.fail("--source and --recording: give one");
+  if (!partition.empty() && (partition.size() > 64 || partition.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_.-") != std::string::npos))
+    cli.fail("--partition must be 1 to 64 characters of [A-Za-z0-9_.-]");
   std::vector<Drill> drills;
   for (const std::string& k : kill_specs) {
     try {
@@ -284,6 +313,16 @@ int main(int argc, char** argv) {
   mkdir(log_dir.c_str(), 0755);
   struct stat st{};
   if (stat(log_dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) cli.fail("--log-dir " + log_dir + ": cannot create");
+  std::string partition_file;  // the lab's profiles plus this launch's partition (removed after a clean run)
+  if (!partition.empty()) {
+    try {
+      partition_file = writePartitionProfiles(dds::Participant::resolveProfiles(lab.profiles), partition, log_dir);
+      dds::Participant::checkProfiles(partition_file);
+    } catch (const std::exception& e) {
+      cli.fail(std::string("--partition: ") + e.what());
+    }
+    lab.profiles = partition_file;
+  }
   std::vector<ChildSpec> specs;
   std::vector<std::string> remote;  // "NAME (on HOST)"
   for (const LabService& s : lab.services) {
@@ -376,9 +415,36 @@ int main(int argc, char** argv) {
     for (const ChildStatus& c : sup.status())
       if (c.running) noteShm(c.pid, &shm_of[c.pid]);
   };
+  // Another lab on the domain: a heartbeat of a service this lab does not have, or of one this
+  // launcher runs from a process it did not start (same host, another pid).
+  std::set<pid_t> our_pids;
+  std::set<std::string> foreign_seen;
+  std::vector<std::string> foreign;
+  char this_host[64] = {0};
+  gethostname(this_host, sizeof this_host - 1);
+  auto noteForeign = [&](const msg::ServiceStatus& s) {
+    const std::string name = s.service().to_string();
+    bool ours_name = lab.service(name) != nullptr;
+    bool alien = !ours_name;
+    if (ours_name && specOf(name) && s.host().to_string() == this_host) {
+      if (!our_pids.count(s.pid()))
+        for (const ChildStatus& c : sup.status()) our_pids.insert(c.pid);
+      alien = !our_pids.count(s.pid());
+    }
+    if (!alien) return false;
+    const std::string who = name + " (pid " + std::to_string(s.pid()) + " on " + s.host().to_string() + ")";
+    if (foreign_seen.insert(who).second) {
+      foreign.push_back(who);
+      std::printf("launch: another lab on domain %u: %s was not started by this launcher; its samples mix with this run's "
+                  "(give each lab its own domain or --partition)\n", lab.domain_id, who.c_str());
+      std::fflush(stdout);
+    }
+    return true;
+  };
   auto takeStatus = [&] {
     msg::ServiceStatus s;
     while (st_in->take(s)) {
+      if (noteForeign(s)) continue;  // not one of ours: neither its state nor its heartbeat counts
       const std::string name = s.service().to_string();
       status[name] = s;
       watchdog.beat(name, Clock::now());
@@ -904,6 +970,8 @@ int main(int argc, char** argv) {
     if (!drill_fired[i]) rep.drills[i] = {drills[i].spec, drills[i].service, -1.0, -1.0, 0};
   rep.late_ms = rep.late_ms;
   rep.failure = failure;
+  rep.foreign = foreign;
+  rep.partition = partition;
   rep.have_hash = lockstep;
   rep.result_hash = hash.h;
   rep.checked = check;
@@ -918,6 +986,7 @@ int main(int argc, char** argv) {
     for (size_t i = 0; i < drills.size(); ++i)
       if (!drill_fired[i]) f.drills_not_done.push_back(drills[i].spec);
     f.failure = failure;
+    f.foreign = foreign;
     f.penetration_max = rep.penetration_max_m;
     f.margin = margin;
     f.joint_gap_max = rep.joint_gap_max_m;
@@ -939,6 +1008,7 @@ int main(int argc, char** argv) {
   if (own_log_dir && failure.empty() && rep.clean_shutdown) {
     for (const ChildSpec& c : specs) std::remove(c.log_file.c_str());
     std::remove((log_dir + "/scene.state").c_str());
+    if (!partition_file.empty()) std::remove(partition_file.c_str());
     rmdir(log_dir.c_str());
   }
   if (check) {

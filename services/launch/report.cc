@@ -57,6 +57,14 @@ void printSummary(const RunReport& r) {
               r.late_ms >= 0 ? (" in " + std::to_string(static_cast<int>(r.late_ms)) + " ms").c_str() : "");
   std::printf("  shutdown:%s; shared-memory segments left: %zu%s\n", r.exits.c_str(), r.shm_left,
               r.shm_removed ? (" (" + std::to_string(r.shm_removed) + " left by this lab's killed processes, removed)").c_str() : "");
+  if (!r.foreign.empty()) {
+    std::string names;
+    for (const std::string& f : r.foreign) names += (names.empty() ? "" : ", ") + f;
+    std::printf("  ANOTHER LAB on this DDS domain: %s; its samples were mixed with this run's (give each lab its own domain or --partition)\n",
+                names.c_str());
+  } else if (!r.partition.empty()) {
+    std::printf("  partition '%s': only this launch's services matched\n", r.partition.c_str());
+  }
   if (r.have_hash && !r.failed()) std::printf("  result hash %016llx\n", static_cast<unsigned long long>(r.result_hash));
   if (!r.failure.empty()) std::printf("launch: FAILED: %s\n", r.failure.c_str());
 }
@@ -120,6 +128,8 @@ nlohmann::json reportJson(const RunReport& r) {
   j["shm_segments_removed"] = r.shm_removed;
   j["clean_shutdown"] = r.clean_shutdown;
   j["dead_at_end"] = r.dead_at_end;
+  j["foreign_services"] = r.foreign;
+  j["partition"] = r.partition;
   if (!r.drills.empty()) {
     nlohmann::json drills = nlohmann::json::array();
     for (const DrillReport& d : r.drills)

@@ -84,6 +84,8 @@ struct RunReport {
   bool clean_shutdown = false;
   std::size_t shm_left = 0, shm_removed = 0;
   std::vector<std::string> dead_at_end;
+  std::vector<std::string> foreign;     ///< services of another lab seen on this domain
+  std::string partition;                ///< --partition ("" = none)
 
   // Verdict.
   std::string failure;

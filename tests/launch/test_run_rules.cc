@@ -143,9 +143,11 @@ TEST(RunVerdict, PassesACleanRunAndNamesEachFailure) {
   f.dead_at_end = {"resolver"};
   f.late_joiner_ok = false;
   f.drills_not_done = {"scene@f999"};
+  f.foreign = {"resolver (pid 42 on pc)"};
   const RunVerdict v = evaluateRun(f);
   EXPECT_FALSE(v.ok);
-  ASSERT_EQ(v.reasons.size(), 4u);
+  ASSERT_EQ(v.reasons.size(), 5u);
+  EXPECT_NE(v.reasons[4].find("another lab shares the DDS domain (resolver (pid 42 on pc))"), std::string::npos) << v.reasons[4];
   EXPECT_NE(v.reasons[0].find("left: 56 of 100 frames lost (budget 5)"), std::string::npos) << v.reasons[0];
   EXPECT_NE(v.reasons[1].find("resolver"), std::string::npos);
   EXPECT_NE(v.reasons[2].find("late joiner"), std::string::npos);

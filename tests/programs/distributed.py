@@ -8,7 +8,7 @@ that nothing is left behind: no process of its domain, no new shared-memory segm
 usage: distributed.py CASE BIN_DIR DEPLOY_DIR DOMAIN [args]
 cases: same-hash RECORDING | live RECORDING | kill SERVICE RECORDING | rejects | loopback RECORDING |
        drills RECORDING | freeze SERVICE RECORDING | freeze-restart SERVICE RECORDING | startup-remote |
-       lockstep-fail RECORDING
+       lockstep-fail RECORDING | two-labs RECORDING | profiles-qos
 """
 import re
 import signal
@@ -266,6 +266,82 @@ def case_lockstep_fail(recording):
     check(j.get("check", {}).get("ok") is False, f"--check failed ({j.get('check')})")
 
 
+def case_two_labs(recording):
+    """Two launches on one DDS domain at the same time. With a partition each, each counts only its
+    own states (one ingest run, the recording's frames) and sees no other lab; without, each says
+    that another lab shares the domain and --check fails."""
+    n = None
+    for partitioned in (True, False):
+        procs = []
+        for tag in ("a", "b"):
+            report = os.path.join(TMP, f"two-{tag}-{partitioned}.json")
+            cmd = [os.path.join(BIN, "godhand-launch"), "--domain", DOMAIN, "--recording", recording, "--quiet", "--check",
+                   "--loss-budget", "0.5", "--json", report, "--log-dir", os.path.join(TMP, f"logs-{tag}")]
+            if partitioned:
+                cmd += ["--partition", f"lab-{tag}"]
+            print("$ " + " ".join(cmd), flush=True)
+            procs.append((tag, subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True), report))
+        for tag, p, report in procs:
+            try:
+                out, _ = p.communicate(timeout=240)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                out, _ = p.communicate()
+            print(out)
+            j = json.load(open(report)) if os.path.exists(report) else {}
+            d = j.get("delivery", {})
+            what = "partitioned" if partitioned else "same partition"
+            if partitioned:
+                check(p.returncode == 0 and j.get("foreign_services") == [], f"{what} {tag}: exit 0, no other lab seen ({p.returncode}, {j.get('foreign_services')})")
+                check(j.get("ingest_runs") == 1, f"{what} {tag}: only its own ingest's run counted ({j.get('ingest_runs')})")
+                check(d and all(c["expected"] == d[next(iter(d))]["expected"] for c in d.values()), f"{what} {tag}: delivery {d}")
+                n = n or (d and next(iter(d.values()))["expected"])
+                check(d and all(c["expected"] == n for c in d.values()), f"{what} {tag}: the recording's {n} frames expected, not twice")
+                check(j.get("hand_states", 10**9) <= 1.5 * n * j.get("hands", 0), f"{what} {tag}: {j.get('hand_states')} hand states, its own only")
+                delivery_checks(j)
+            else:
+                check(len(j.get("foreign_services", [])) >= 1 and "another lab on domain" in out,
+                      f"{what} {tag}: said another lab shares the domain ({j.get('foreign_services')})")
+                check(p.returncode == 1 and any("another lab" in r for r in j.get("check", {}).get("reasons", [])),
+                      f"{what} {tag}: --check failed on it (exit {p.returncode})")
+
+
+def case_profiles_qos():
+    """Liveliness on every stream and a deadline on every live writer, from the shipped profiles,
+    with values under which each profile's writer and reader match (writer lease <= reader lease;
+    a reader deadline, if any, >= the writer's). The runs of the other cases use these profiles."""
+    import xml.etree.ElementTree as ET
+    ns = {"f": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
+    root = ET.parse(os.path.join(DEPLOY, "dds", "godhand-local.xml")).getroot()
+
+    def seconds(e):
+        return float(e.findtext("f:sec", "0", ns)) + float(e.findtext("f:nanosec", "0", ns)) * 1e-9 if e is not None else None
+
+    profiles = {}
+    for kind in ("data_writer", "data_reader"):
+        for e in root.findall(f"f:{kind}", ns):
+            name = e.get("profile_name")
+            q = e.find("f:qos", ns)
+            lv = q.find("f:liveliness", ns)
+            profiles[(kind, name)] = {
+                "liveliness": lv.findtext("f:kind", None, ns) if lv is not None else None,
+                "lease": seconds(lv.find("f:lease_duration", ns)) if lv is not None else None,
+                "deadline": seconds(q.find("f:deadline/f:period", ns))}
+    names = {n for _, n in profiles}
+    check(len(names) >= 4, f"profiles found ({sorted(names)})")
+    for n in sorted(names):
+        w, r = profiles.get(("data_writer", n)), profiles.get(("data_reader", n))
+        check(w and r, f"{n}: writer and reader profiles")
+        if not (w and r):
+            continue
+        check(w["liveliness"] == "AUTOMATIC" and r["liveliness"] == "AUTOMATIC", f"{n}: AUTOMATIC liveliness on both")
+        check(w["lease"] and r["lease"] and w["lease"] <= r["lease"] <= 2.0, f"{n}: leases {w['lease']} <= {r['lease']} <= 2 s")
+        if n != "godhand.lockstep":
+            check(w["deadline"] is not None and 0 < w["deadline"] <= 2.0, f"{n}: writer deadline {w['deadline']} s")
+        check(r["deadline"] is None or (w["deadline"] is not None and r["deadline"] >= w["deadline"]),
+              f"{n}: reader deadline {r['deadline']} compatible with the writer's {w['deadline']}")
+
+
 def case_kill(service, recording):
     r, j = launch(["--recording", recording, "--kill", service + "@1.5", "--restart-delay", "0.5"])
     check(r.returncode == 0, "godhand-launch with the fault drill exited 0")
@@ -414,6 +490,10 @@ try:
         case_freeze(ARGS[0], ARGS[1], True)
     elif CASE == "startup-remote":
         case_startup_remote()
+    elif CASE == "profiles-qos":
+        case_profiles_qos()
+    elif CASE == "two-labs":
+        case_two_labs(ARGS[0])
     elif CASE == "lockstep-fail":
         case_lockstep_fail(ARGS[0])
     else:
