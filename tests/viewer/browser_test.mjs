@@ -218,10 +218,11 @@ async function caseLive() {
       received: { ...window.godhand.received }, renders: window.godhand.renders,
       badges: [...document.querySelectorAll('#hands > div')].map((d) => ({ id: d.id, stale: d.dataset.stale, text: d.textContent })) }));
     samples.push(s);
-    const drawnHands = Object.values(s.drawn).filter((d) => !d.stale);
-    if (!shot && drawnHands.length === 2 && s.received.hand_state > 60) {
-      shot = await page.screenshot({ path: path.join(TMP, 'live.png') });
-      shotHands = drawnHands.length;
+    const fresh = (drawn) => Object.values(drawn).filter((d) => !d.stale && !d.held && d.ghostVisible).length;
+    if (!shot && fresh(s.drawn) === 2 && s.received.hand_target > 20) {
+      const png = await page.screenshot({ path: path.join(TMP, 'live.png') });
+      // Kept only when both hands were still drawn fresh, with their ghosts, right after it.
+      if (fresh(await page.evaluate(() => window.godhand.drawn)) === 2) { shot = png; shotHands = 2; }
     }
     await sleep(100);
   }

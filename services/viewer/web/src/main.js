@@ -144,6 +144,7 @@ class HandView {
     this.god = new THREE.Group();
     this.ghost = new THREE.Group();
     this.ghost.renderOrder = 2;
+    this.ghost.visible = false;  // until the first target
     scene.add(this.god, this.ghost);
     this.godBodies = [];
     this.ghostBodies = [];
