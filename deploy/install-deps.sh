@@ -11,6 +11,7 @@ pkgs=(
   libgtest-dev libgmock-dev nlohmann-json3-dev libbenchmark-dev
   libwebsocketpp-dev libboost-dev chromium  # godhand-viewer: its server, and the browser its tests drive
   clang libfuzzer-14-dev libclang-rt-14-dev  # libFuzzer targets of the parsers (tests/fuzz/run_fuzz.sh)
+  cyclonedds-dev cyclonedds-tools openssl  # interop test (a Cyclone DDS reader, its idlc); lab PKI (deploy/security)
 )
 missing=()
 for p in "${pkgs[@]}"; do
