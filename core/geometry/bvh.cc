@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -15,11 +16,71 @@ constexpr int kMaxSahDepth = 48;   ///< below this depth: object-median splits (
 constexpr int kStackSize = 256;    ///< traversal stack (≥ 2 × the maximum depth)
 constexpr double kWindingBeta = 2.0;  ///< Barill et al. 2018 accuracy parameter
 constexpr double kPi = 3.14159265358979323846;
+constexpr double kMinShrink = 1e-9;  ///< m: least margin of a triangle in advancementStep
 
 double surfaceArea(const Aabb& b) {
   if (b.empty()) return 0.0;
   const Vec3 e = b.extent();
   return 2.0 * (e.x() * e.y() + e.y() * e.z() + e.z() * e.x());
+}
+
+/// Second-order directional bound (sweep.h): the earliest τ ∈ (0, horizon] at which the separation
+/// along the fixed unit direction w between the moving core and a fixed convex set can have
+/// shrunk by `margin` (> 0); +inf if it cannot within the horizon. The core's support along w is
+///   h(τ) = w·p(τ) + Σ_j e_j |w·a_j(τ)|   (capsule: its axis, e = half length; box: three axes),
+/// with p(τ) = p + τ Δp and a_j(τ) = exp(τθ) a_j. Taylor with a bounded remainder gives
+///   h(τ) − h(0) ≤ τ w·Δp + Σ_j e_j (|c_j + τ ω_j| − |c_j|) + ½ τ² |θ| |w × θ| Σ_j e_j,
+///   c_j = w·a_j,  ω_j = w·(θ × a_j)   (|d²/dτ² w·a_j| = |(θ × a_j)·(w × θ)| ≤ |θ| |w × θ|),
+/// which is convex in τ: the first crossing is found piece by piece between the kinks −c_j/ω_j.
+/// Unlike the first-order rate w·Δp + ρ_c |w × θ| (always > 0 under any tangential rotation),
+/// it sees an end of the core that turns away from the set as receding.
+double secondOrderTime(double margin, const Vec3& w, const Vec3& dp, const Vec3& theta, const Vec3* axes,
+                       const double* half, int n, double horizon) {
+  const double inf = std::numeric_limits<double>::infinity();
+  double c[3], om[3], kinks[5];
+  double esum = 0.0;
+  int nk = 0;
+  kinks[nk++] = 0.0;
+  for (int j = 0; j < n; ++j) {
+    c[j] = w.dot(axes[j]);
+    om[j] = w.dot(theta.cross(axes[j]));
+    esum += half[j];
+    if (om[j] != 0.0) {
+      const double k = -c[j] / om[j];
+      if (k > 0.0 && k < horizon) kinks[nk++] = k;
+    }
+  }
+  kinks[nk++] = horizon;
+  for (int i = 2; i + 1 < nk; ++i)  // insertion sort of the (at most three) interior kinks
+    for (int k = i; k > 1 && kinks[k] < kinks[k - 1]; --k) std::swap(kinks[k], kinks[k - 1]);
+  const double A = 0.5 * theta.norm() * w.cross(theta).norm() * esum;
+  const double lin = w.dot(dp);
+  for (int piece = 0; piece + 1 < nk; ++piece) {
+    const double lo = kinks[piece], hi = kinks[piece + 1];
+    if (!(hi > lo)) continue;
+    const double mid = 0.5 * (lo + hi);
+    double B = lin, C = -margin;
+    for (int j = 0; j < n; ++j) {
+      const double s = c[j] + mid * om[j] >= 0.0 ? 1.0 : -1.0;
+      B += half[j] * s * om[j];
+      C += half[j] * (s * c[j] - std::abs(c[j]));
+    }
+    const auto g = [&](double t) { return (A * t + B) * t + C; };
+    if (g(hi) < 0.0) continue;  // still short of the margin at the end of this piece
+    // g(lo) < 0 ≤ g(hi), g convex: the larger root of A t² + B t + C (or the linear one).
+    double t;
+    if (A > 0.0) {
+      const double disc = std::max(0.0, B * B - 4.0 * A * C);
+      const double q = std::sqrt(disc);
+      t = B >= 0.0 ? (-2.0 * C) / (B + q) : (q - B) / (2.0 * A);
+    } else {
+      t = B > 0.0 ? -C / B : hi;
+    }
+    if (!std::isfinite(t)) t = lo;
+    // Round-off: never later than the true crossing by more than a relative 1e-12.
+    return std::clamp(t * (1.0 - 1e-12), lo, hi);
+  }
+  return inf;
 }
 
 /// The shape's core in frame M, with what the box lower bounds need.
@@ -417,6 +478,21 @@ double MeshBvh::advancementStep(const Shape& shape, const Pose& X_MB, const Vec3
   const double mu_c = dp_M.norm() + rho_c * theta_M.norm();  // bound along any direction
   const CoreM core(shape, X_MB);
   const Mat3 R_BM = core.R_MB.transpose();
+  // The core's axes in M for the second-order bound (a sphere's core is a point: exact already).
+  Vec3 axes[3];
+  double halves[3];
+  int n_axes = 0;
+  if (shape.type == ShapeType::Capsule && shape.half_length > 0.0) {
+    axes[0] = core.R_MB.col(2);
+    halves[0] = shape.half_length;
+    n_axes = 1;
+  } else if (shape.type == ShapeType::Box) {
+    for (int j = 0; j < 3; ++j) {
+      axes[j] = core.R_MB.col(j);
+      halves[j] = shape.half_extents[j];
+    }
+    n_axes = 3;
+  }
   // Time for a separation s (core to object, along unit w) to shrink to r + η.
   auto timeBound = [&](double s, const Vec3& w) {
     const double margin = s - r - eta;
@@ -447,10 +523,20 @@ double MeshBvh::advancementStep(const Shape& shape, const Pose& X_MB, const Vec3
     Vec3 core_B, tri_B;
     const double d_core = detail::coreTriangle(shape, abc_B[0], abc_B[1], abc_B[2], &core_B, &tri_B);
     double t_i = 0.0;
-    if (d_core > r + eta) {
-      // Separating direction from the core towards the triangle, frame M.
+    if (d_core > 0.0) {
+      // Separating direction from the core towards the triangle, frame M (the closest pair's, so
+      // the separation along it is the distance now): the larger of the first-order and the
+      // second-order bound (both are lower bounds of the contact time). A triangle already
+      // within η (a body resting at the sweep's floor) may not come closer by more than
+      // kMinShrink: the body can recede or slide along it, not creep in. (Only here: for boxes
+      // and the pre-check the separation is a lower bound below the distance, so a margin <= 0
+      // there says nothing and they are always visited.)
       const Vec3 w_M = core.R_MB * ((tri_B - core_B) / d_core);
-      t_i = timeBound(d_core, w_M);
+      const double margin = std::max(d_core - r - eta, kMinShrink);
+      const double rate = w_M.dot(dp_M) + rho_c * w_M.cross(theta_M).norm();
+      t_i = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
+      if (t_i < best && n_axes > 0)
+        t_i = std::max(t_i, secondOrderTime(margin, w_M, dp_M, theta_M, axes, halves, n_axes, horizon));
     }
     if (t_i < best) {
       best = t_i;

@@ -89,17 +89,28 @@ SweepResult sweep(const Shape& shape, const Pose& X_M0, const Pose& X_M1, const 
     return result;
   }
   double d = nt.closest.distance;
-  if (!(d > 0.0)) {
+  // Only a core inside the surface is "inside" (nothing can be said). A body whose rounded shell
+  // overlaps the surface by less than its radius is swept like one at the stop floor: it may
+  // recede or slide, never go deeper.
+  if (!(nt.closest.core_distance > 0.0)) {
     result.started_inside = true;
     result.toc = 0.0;
     result.distance = d;
     return result;
   }
-  const double eta = std::min(params.stop_distance, 0.5 * d);
-  if (params.directional) return directionalSweep(shape, motion, mu, d, nt.triangle, eta, bvh, params, result);
+  // η = min(stop_distance, d(0)/2), but never below min_stop_distance: a body stopped close to a
+  // surface keeps a floor, so repeated clips cannot walk it down to touching (where round-off
+  // would read it as inside, and inside cannot be clipped). Below the floor it may only recede
+  // or slide (bvh.h advancementStep). The tolerance stays below the room between η and d(0): a
+  // body resting a few µm from a surface would otherwise count as within η + tolerance at t = 0
+  // and stop there for good, whichever way it moves.
+  const double eta = std::min(params.stop_distance, std::max(params.min_stop_distance, 0.5 * d));
+  SweepParams local = params;
+  local.tolerance = std::min(params.tolerance, std::max(0.0, 0.5 * (d - eta)));
+  if (params.directional) return directionalSweep(shape, motion, mu, d, nt.triangle, eta, bvh, local, result);
   double t = 0.0;
   for (;;) {
-    if (d <= eta + params.tolerance) {
+    if (d <= eta + local.tolerance) {
       result.hit = true;
       result.toc = t;
       result.distance = d;
@@ -134,7 +145,7 @@ SweepResult sweep(const Shape& shape, const Pose& X_M0, const Pose& X_M1, const 
       return result;
     }
     d = nt.closest.distance;
-    if (t >= 1.0 && d > eta + params.tolerance) {
+    if (t >= 1.0 && d > eta + local.tolerance) {
       result.toc = 1.0;
       result.distance = d;
       return result;

@@ -34,6 +34,7 @@ namespace godhand::geo {
 
 struct SweepParams {
   double stop_distance = 2.5e-5;  ///< η, m: stop this far from the surface
+  double min_stop_distance = 1e-6;  ///< η never below this, m (no ratchet down to touching)
   double tolerance = 1e-6;        ///< CA stops once within η + tolerance, m (directional: once
                                   ///< the triangle limiting the step is)
   int max_iterations = 100;       ///< then the toc reached so far is returned (conservative)

@@ -8,6 +8,7 @@ namespace godhand {
 
 namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr int kShellSample = 15;  ///< sample id of shell candidates (in the contact key)
 
 std::uint64_t contactKey(int object, int triangle, int body, int sample) {
   const std::uint64_t id = (static_cast<std::uint64_t>(object) << 44) ^
@@ -36,6 +37,7 @@ CollisionWorld::CollisionWorld(const Scene& scene) {
     setObjectPose(static_cast<int>(objects_.size()) - 1, so.X_WO);
   }
   near_.reserve(1024);
+  shell_.reserve(1024);
   order_.reserve(1024);
   sample_.reserve(64);
   kept_.reserve(16);
@@ -59,7 +61,8 @@ int CollisionWorld::contacts(const Shape& shape, const Pose& X_WB, int body, dou
                              const ContactParams& params, std::vector<Contact>* out) {
   const geo::Aabb query_W = geo::shapeAabb(shape, X_WB).inflated(reach);
   const double cos_same = std::cos(params.normal_angle);
-  const double spread2 = params.spread * params.spread;
+  const double spread = std::max(params.spread, params.spread_fraction * geo::boundingRadius(shape));
+  const double spread2 = spread * spread;
   // Sample shapes (body frame): the whole shape, plus the capsule's end spheres or the box's
   // corners, so that a body lying along a surface gets contacts at both ends / all corners.
   Shape samples[9];
@@ -105,9 +108,31 @@ int CollisionWorld::contacts(const Shape& shape, const Pose& X_WB, int body, dou
       sample_.push_back(k);
     }
     if (near_.empty()) continue;
+    if (!inside && params.shell > 0.0) {
+      double nearest = kInf;
+      for (const geo::NearTriangle& c : near_) nearest = std::min(nearest, c.closest.distance);
+      if (nearest < params.shell) {
+        shell_.clear();
+        o.god->near(shape, X_OB, params.shell, &shell_);
+        for (const geo::NearTriangle& c : shell_) {
+          near_.push_back(c);
+          sample_.push_back(kShellSample);
+        }
+      }
+    }
     order_.resize(near_.size());
     for (size_t i = 0; i < near_.size(); ++i) order_[i] = static_cast<int>(i);
+    // The parts' own closest points within the shell first (they span the body: a box resting
+    // on an edge keeps rows at its other corners, which stop it from rolling about that edge),
+    // then the shell's triangles, then the parts' points farther out; nearest first within each.
+    const double shell = params.shell;
+    auto rank = [&](int i) {
+      if (sample_[static_cast<size_t>(i)] == kShellSample) return 1;
+      return near_[static_cast<size_t>(i)].closest.distance < shell || shell <= 0.0 ? 0 : 2;
+    };
     std::sort(order_.begin(), order_.end(), [&](int a, int b) {
+      const int ra = rank(a), rb = rank(b);
+      if (ra != rb) return ra < rb;
       const double da = near_[static_cast<size_t>(a)].closest.distance, db = near_[static_cast<size_t>(b)].closest.distance;
       return da < db || (da == db && near_[static_cast<size_t>(a)].triangle < near_[static_cast<size_t>(b)].triangle);
     });

@@ -30,9 +30,16 @@
 namespace godhand {
 
 struct ContactParams {
-  int per_pair = 4;             ///< K: contacts kept per (God object, scene object)
+  int per_pair = 8;             ///< K: contacts kept per (God object, scene object)
   double spread = 0.004;        ///< m: closer kept points must differ in normal
+  /// The spread grows with the body: at least this fraction of its bounding radius (a palm
+  /// touching along an edge keeps rows at its far corners instead of a row every few mm there).
+  double spread_fraction = 0.25;
   double normal_angle = 0.35;   ///< rad: normals closer than this count as the same direction
+  /// m: when the body is this close to an object, every triangle within the shell is a candidate
+  /// too (a body in a crease touches two faces, and the closest-point queries find only one; a
+  /// row for the nearest face alone pushes it into the other).
+  double shell = 3e-4;
 };
 
 class CollisionWorld {
@@ -76,7 +83,7 @@ class CollisionWorld {
   bool insideGod(const Object& o, const Pose& X_OB) const;
 
   std::vector<Object> objects_;
-  std::vector<geo::NearTriangle> near_;   // scratch
+  std::vector<geo::NearTriangle> near_, shell_;  // scratch
   std::vector<int> order_, sample_;       // scratch
   std::vector<int> kept_;                 // scratch
 };

@@ -72,12 +72,14 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
     rep.force_N = r.force_N;
     rep.joint_errors = r.joint_errors;
     rep.loaded = r.loaded;
+    rep.clipped = r.clipped;
+    rep.substeps = r.substeps;
     report_.contacts += r.contacts;
     report_.times.contacts_us += r.solver_times.contacts_us;
     report_.times.assembly_us += r.solver_times.assembly_us;
     report_.times.solve_us += r.solver_times.solve_us;
     report_.times.integrate_us += r.solver_times.integrate_us;
-    report_.times.ccd_us += r.ccd_us;
+    report_.times.ccd_us += r.ccd_us + r.solver_times.ccd_us;
     report_.times.merge_us += r.merge_us;
   }
   // counters: the sums of the stages'

@@ -60,6 +60,8 @@ struct HandFrameReport {
   std::uint32_t flags = 0;
   double force_N = 0.0;               ///< Σ |f| sent to the scene
   bool loaded = false;                ///< some contact carried force this frame
+  bool clipped = false;               ///< the motion was clipped (some round hit the scene)
+  int substeps = 0;                   ///< solve -> sweep rounds taken
   JointErrors joint_errors;
 };
 

@@ -57,6 +57,8 @@ void PipelineParams::validate() const {
   require(sweep.stop_distance > 0 && std::isfinite(sweep.stop_distance), "sweep.stop_distance must be > 0");
   require(sweep.stop_distance < step.rows.margin, "sweep.stop_distance must be below the contact margin");
   require(sweep.tolerance > 0 && sweep.tolerance < sweep.stop_distance, "sweep.tolerance must be in (0, stop_distance)");
+  require(sweep.min_stop_distance > 0 && sweep.min_stop_distance <= sweep.stop_distance,
+          "sweep.min_stop_distance must be in (0, stop_distance]");
   require(sweep.max_iterations >= 1, "sweep.max_iterations must be >= 1");
   require(max_force_per_contact > 0 && max_force_per_hand > 0, "force bounds must be > 0");
   require(resolve_iterations >= 0 && resolve_iterations <= 100, "resolve_iterations must be in [0, 100]");
@@ -83,6 +85,8 @@ HandSolver::HandSolver(const Scene& scene, const HandModel& model, const Pipelin
     : model_(model), params_(prepared(params)), collision_(scene), trace_(traceLevel()) {
   stepper_ = std::make_unique<ClusterStepper>(model, params_.step);
   const int per = static_cast<int>(model.bodies.size()) * params_.contacts.per_pair * 4;
+  blocked_.assign(model.bodies.size(), 0);
+  body_toc_.assign(model.bodies.size(), 1.0);
   stepper_->reserve(per);
   contacts_.reserve(static_cast<size_t>(per));
   proposal_.loads.reserve(static_cast<size_t>(per));
@@ -160,8 +164,67 @@ void HandSolver::generateContacts(const HandInput& in) {
     const bool driven = in.tracked && (!in.has_target || in.has_target[b]);
     if (driven) reach += askedMotion(X[b], in.targets[b], geo::boundingRadius(shape));
     reach = std::min(reach, params_.max_reach);
-    collision_.contacts(shape, X[b], static_cast<int>(b), reach, params_.contacts, &contacts_);
+    // A body whose last sweep hit gets every triangle of its contact shell as a candidate (the
+    // face it was about to hit, e.g. the second face of a crease); the others only the
+    // closest-point candidates, which is cheaper.
+    ContactParams cp = params_.contacts;
+    if (!blocked_[b]) cp.shell = 0.0;
+    collision_.contacts(shape, X[b], static_cast<int>(b), reach, cp, &contacts_);
   }
+}
+
+double HandSolver::sweepLastMotion(bool* started_inside) {
+  const std::vector<Pose>& X0 = stepper_->previousPoses();
+  const std::vector<Pose>& X1 = stepper_->poses();
+  double toc = 1.0;
+  for (size_t b = 0; b < model_.bodies.size(); ++b) {
+    const geo::SweepResult s = collision_.sweep(model_.bodies[b].shape, X0[b], X1[b], params_.sweep);
+    if (s.started_inside) *started_inside = true;
+    blocked_[b] = s.hit ? 1 : 0;
+    body_toc_[b] = s.toc;
+    if ((trace_ >= 2 && s.toc < 1.0) || trace_ >= 3)
+      std::fprintf(stderr, "trace: body %zu toc %.3g hit %d inside %d it %d d %.3g move %.3g pen0 %.3g pen1 %.3g\n", b, s.toc, s.hit,
+                   s.started_inside, s.iterations, s.distance, (X1[b].p - X0[b].p).norm(),
+                   collision_.penetration(model_.bodies[b].shape, X0[b]), collision_.penetration(model_.bodies[b].shape, X1[b]));
+    toc = std::min(toc, s.toc);
+  }
+  return toc;
+}
+
+// Clipping a round's motion. First each body to its own TOC (the bodies whose paths are free take
+// their whole motion: one blocked fingertip does not stop the hand), then the joints re-closed
+// against the contacts found there. The re-closing moves bodies too, so it is swept as well; if
+// it hits, every body goes back to TOC_min instead (Algorithm 1) and the joints are re-closed
+// from there. Either way every motion that reaches the result was swept.
+void HandSolver::clip(double toc_min) {
+  const size_t n = model_.bodies.size();
+  auto reclose = [&]() {
+    clip_contacts_.clear();
+    const std::vector<Pose>& X = stepper_->poses();
+    for (size_t b = 0; b < n; ++b)
+      collision_.contacts(model_.bodies[b].shape, X[b], static_cast<int>(b), params_.contact_reach, params_.contacts,
+                          &clip_contacts_);
+    stepper_->reproject(clip_contacts_.data(), static_cast<int>(clip_contacts_.size()));
+  };
+  X0_ = stepper_->previousPoses();
+  X1_ = stepper_->poses();
+  stepper_->interpolate(body_toc_.data());
+  X_clip_ = stepper_->poses();
+  reclose();
+  bool free = true;
+  const std::vector<Pose>& X = stepper_->poses();
+  for (size_t b = 0; b < n && free; ++b) {
+    const geo::SweepResult s = collision_.sweep(model_.bodies[b].shape, X_clip_[b], X[b], params_.sweep);
+    free = !s.hit && !s.started_inside && s.toc >= 1.0;
+  }
+  if (free) {
+    ++per_body_clips_;
+    return;
+  }
+  ++uniform_clips_;
+  stepper_->setMotion(X0_, X1_);
+  stepper_->interpolate(toc_min);
+  reclose();
 }
 
 const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
@@ -176,6 +239,11 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
   p.status = SolveStatus::Converged;
   p.flags = 0;
   p.times = SolverTimes{};
+  p.substeps = 0;
+  p.toc = 1.0;
+  p.clipped = false;
+  p.swept = false;
+  p.started_inside = false;
   ++counters_.steps;
   if (p.tracked && !started_) start(in);
   p.started = started_;
@@ -184,39 +252,65 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     contacts_.clear();
     p.X_new = p.X_old;
     p.joint_errors = started_ ? last_errors_ : JointErrors{};
+    p.swept = true;  // no motion
     return p;
   }
-  Clock::time_point t0 = Clock::now();
-  generateContacts(in);
-  p.times.contacts_us = usSince(t0);
   StepInput si;
   si.targets = in.targets;
   si.has_target = in.has_target;
-  si.contacts = contacts_.data();
-  si.num_contacts = static_cast<int>(contacts_.size());
-  const StepReport& sr = stepper_->step(si);
-  if (trace_ >= 1)
-    std::fprintf(stderr, "trace: frame %llu step status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu\n",
-                 static_cast<unsigned long long>(frame), static_cast<int>(sr.solve.status), sr.solve.kkt_residual,
-                 sr.projection_iterations, sr.joint_errors.gap, sr.rows, sr.flags, contacts_.size());
-  p.times.assembly_us = sr.times.coupling_us + sr.times.assembly_us;
-  p.times.solve_us = sr.times.solve_us;
-  p.times.integrate_us = sr.times.integrate_us + sr.times.project_us;
-  p.contact_count = static_cast<int>(contacts_.size());
-  p.kkt = sr.solve.kkt_residual;
-  p.status = sr.solve.status;
-  p.flags = sr.flags;
-  p.joint_errors = sr.joint_errors;
-  last_errors_ = sr.joint_errors;
-  if (sr.flags & kFlagSolverFailed) ++counters_.solver_failures;
-  if (sr.flags & kFlagSolverInexact) ++counters_.inexact_solves;
-  p.X_new = stepper_->poses();
-  for (size_t i = 0; i < contacts_.size(); ++i) {
-    const Contact& c = contacts_[i];
-    const double lambda = stepper_->contactLambda(static_cast<int>(i));
-    if (c.object < 0 || !std::isfinite(lambda) || !(lambda > 0.0)) continue;
-    p.loads.push_back(ContactLoad{c.body, c.object, c.p_W, c.n_W, lambda});
+  bool inside = false;
+  // Rounds of contacts -> Gauss step -> sweep (METHOD.md §2 steps 2-5). A clipped round moves the
+  // hand to its TOC (Algorithm 1), re-closes the joints against the contacts found there, and the
+  // next round solves the rest of the way towards the same targets from that pose: a body that
+  // met a surface slides along it instead of ending the frame, and the bodies whose paths are
+  // free go on.
+  for (;;) {
+    Clock::time_point t0 = Clock::now();
+    generateContacts(in);
+    p.times.contacts_us += usSince(t0);
+    si.contacts = contacts_.data();
+    si.num_contacts = static_cast<int>(contacts_.size());
+    const StepReport& sr = stepper_->step(si);
+    ++p.substeps;
+    if (trace_ >= 1)
+      std::fprintf(stderr, "trace: frame %llu round %d status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu\n",
+                   static_cast<unsigned long long>(frame), p.substeps, static_cast<int>(sr.solve.status),
+                   sr.solve.kkt_residual, sr.projection_iterations, sr.joint_errors.gap, sr.rows, sr.flags,
+                   contacts_.size());
+    p.times.assembly_us += sr.times.coupling_us + sr.times.assembly_us;
+    p.times.solve_us += sr.times.solve_us;
+    p.times.integrate_us += sr.times.integrate_us + sr.times.project_us;
+    p.contact_count = std::max(p.contact_count, static_cast<int>(contacts_.size()));
+    p.kkt = std::max(p.kkt, sr.solve.kkt_residual);
+    if (sr.solve.status != SolveStatus::Converged) p.status = sr.solve.status;
+    p.flags |= sr.flags;
+    p.joint_errors = sr.joint_errors;
+    if (sr.flags & kFlagSolverFailed) ++counters_.solver_failures;
+    if (sr.flags & kFlagSolverInexact) ++counters_.inexact_solves;
+    // The multipliers of the last round are the forces of this frame.
+    p.loads.clear();
+    for (size_t i = 0; i < contacts_.size(); ++i) {
+      const Contact& c = contacts_[i];
+      const double lambda = stepper_->contactLambda(static_cast<int>(i));
+      if (c.object < 0 || !std::isfinite(lambda) || !(lambda > 0.0)) continue;
+      p.loads.push_back(ContactLoad{c.body, c.object, c.p_W, c.n_W, lambda});
+    }
+    t0 = Clock::now();
+    const double toc = sweepLastMotion(&inside);
+    p.times.ccd_us += usSince(t0);
+    if (!(toc < 1.0)) break;
+    p.clipped = true;
+    p.toc = std::min(p.toc, toc);
+    t0 = Clock::now();
+    clip(toc);
+    p.joint_errors = stepper_->lastReport().joint_errors;
+    p.times.integrate_us += usSince(t0);
+    if (p.substeps >= params_.max_substeps) break;
   }
+  p.started_inside = inside;
+  last_errors_ = p.joint_errors;
+  p.X_new = stepper_->poses();
+  p.swept = true;
   return p;
 }
 
@@ -241,7 +335,19 @@ Resolver::Resolver(const Scene& scene, std::vector<const HandModel*> hands, cons
 
 Resolver::~Resolver() = default;
 
-void Resolver::setScene(const SceneSnapshot& snapshot) { applySnapshot(collision_, snapshot); }
+void Resolver::setScene(const SceneSnapshot& snapshot) {
+  applySnapshot(collision_, snapshot);
+  scene_frame_ = snapshot.frame;
+}
+
+namespace {
+bool samePoses(const std::vector<Pose>& a, const std::vector<Pose>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i)
+    if (a[i].p != b[i].p || a[i].q.coeffs() != b[i].q.coeffs()) return false;
+  return true;
+}
+}  // namespace
 
 void Resolver::applyForces(int h, const HandProposal& p) {
   HandResult& r = hands_[static_cast<size_t>(h)].result;
@@ -309,23 +415,45 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
     r.force_N = 0.0;
     r.solver_times = p->times;
     r.ccd_us = r.merge_us = 0.0;
+    r.substeps = 0;
+    r.clipped = false;
     if (!p->tracked || !p->started) {  // frozen: no motion, no forces
       r.X = hand.X_from;
       continue;
     }
+    r.substeps = p->substeps;
+    r.clipped = p->clipped;
+    // The solver swept its rounds from this very start against this very scene: its path is the
+    // one a sweep here would check (lock-step and in-process runs: always). Otherwise (a live
+    // solver that stepped from an older state or scene) the straight motion from the last result
+    // is swept again and clipped here.
+    if (p->swept && p->scene_frame == scene_frame_ && samePoses(hand.X_from, p->X_old)) {
+      ++counters_.trusted;
+      r.toc = p->toc;
+      r.started_inside = p->started_inside;
+      if (r.started_inside) ++counters_.started_inside;
+      if (p->clipped) ++counters_.clipped_steps;
+      Clock::time_point t0 = Clock::now();
+      applyForces(static_cast<int>(h), *p);
+      r.X = p->X_new;
+      r.merge_us = usSince(t0);
+      if (trace_ >= 1)
+        std::fprintf(stderr, "trace: frame %llu hand %zu rounds %d toc %.3g gap %.3g contacts %d inside %d pen %.3g\n",
+                     static_cast<unsigned long long>(frame), h, p->substeps, r.toc, r.joint_errors.gap, r.contacts,
+                     r.started_inside, penetration(static_cast<int>(h)));
+      continue;
+    }
+    ++counters_.reswept;
     // ccd: TOC_min of this cluster
     Clock::time_point t0 = Clock::now();
     double toc = 1.0;
     for (size_t b = 0; b < n; ++b) {
       const geo::SweepResult s = collision_.sweep(hand.model->bodies[b].shape, hand.X_from[b], p->X_new[b], params_.sweep);
       if (s.started_inside) r.started_inside = true;
-      if (trace_ >= 2 && s.toc < 1.0)
-        std::fprintf(stderr, "trace: body %zu toc %.3g hit %d inside %d it %d d %.3g move %.3g\n", b, s.toc, s.hit,
-                     s.started_inside, s.iterations, s.distance, (p->X_new[b].p - hand.X_from[b].p).norm());
       toc = std::min(toc, s.toc);
     }
     if (r.started_inside) ++counters_.started_inside;
-    r.toc = toc;
+    r.toc = std::min(toc, p->toc);
     r.ccd_us = usSince(t0);
     // merge: forces to the scene, clip to TOC_min
     t0 = Clock::now();
@@ -342,14 +470,16 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
       hand.stepper->reproject(hand.contacts.data(), static_cast<int>(hand.contacts.size()));
       r.X = hand.stepper->poses();
       r.joint_errors = hand.stepper->lastReport().joint_errors;
-      ++counters_.clipped_steps;
+      r.clipped = true;
     } else {
       r.X = p->X_new;
     }
+    if (r.clipped) ++counters_.clipped_steps;
     r.merge_us = usSince(t0);
     if (trace_ >= 1)
-      std::fprintf(stderr, "trace: frame %llu hand %zu toc %.3g gap %.3g contacts %d inside %d\n",
-                   static_cast<unsigned long long>(frame), h, toc, r.joint_errors.gap, r.contacts, r.started_inside);
+      std::fprintf(stderr, "trace: frame %llu hand %zu toc %.3g gap %.3g contacts %d inside %d pen %.3g\n",
+                   static_cast<unsigned long long>(frame), h, toc, r.joint_errors.gap, r.contacts, r.started_inside,
+                   penetration(static_cast<int>(h)));
   }
   for (size_t h = 0; h < hands_.size(); ++h) {
     const Hand& hand = hands_[h];

@@ -52,6 +52,10 @@ struct PipelineParams {
   int resolve_iterations = 4;         ///< scene push-out passes (paper §6.2)
   bool simulate = true;               ///< false: dynamic objects stay put (pure God-object run)
   double start_clearance = 2e-4;      ///< m: a start pose closer than this is not free
+  /// Solve -> sweep rounds per frame (Ortega et al., Redon; METHOD.md §2 step 5): after a clip
+  /// the contacts at the clipped pose are found and the rest of the motion towards the same
+  /// targets is solved and swept again, at most this many rounds in all.
+  int max_substeps = 4;
 
   void validate() const;              ///< throws std::invalid_argument naming the field
 };
@@ -73,7 +77,7 @@ struct ContactLoad {
 };
 
 struct SolverTimes {
-  double contacts_us = 0, assembly_us = 0, solve_us = 0, integrate_us = 0;
+  double contacts_us = 0, assembly_us = 0, solve_us = 0, integrate_us = 0, ccd_us = 0;
 };
 
 /// solver -> resolver: the constrained step of one cluster, before continuous collision.
@@ -92,6 +96,13 @@ struct HandProposal {
   std::uint32_t flags = 0;
   JointErrors joint_errors;       ///< of X_new
   SolverTimes times;
+  int substeps = 0;               ///< solve -> sweep rounds taken (0: not stepped)
+  double toc = 1.0;               ///< smallest TOC of those rounds
+  bool clipped = false;           ///< some round was clipped
+  /// X_old -> X_new was swept, round by round, against the scene of scene_frame: a resolver
+  /// with the same start and scene would find the same (safe) path and need not sweep again.
+  bool swept = false;
+  bool started_inside = false;    ///< a sweep began inside an object
 };
 
 /// resolver -> everyone: the final pose of one cluster for one frame.
@@ -114,6 +125,8 @@ struct HandResult {
   double force_N = 0.0;
   SolverTimes solver_times;
   double ccd_us = 0.0, merge_us = 0.0;
+  int substeps = 0;               ///< the solver's rounds this frame
+  bool clipped = false;           ///< clipped this frame (by the solver's rounds or the resolver)
 };
 
 /// A point force on a scene object, in application order.
@@ -162,6 +175,8 @@ struct SolverCounters {
 };
 struct ResolverCounters {
   std::uint64_t frames = 0, clipped_steps = 0, started_inside = 0, forces_clamped = 0, held = 0;
+  std::uint64_t trusted = 0;      ///< proposals taken as swept by their solver (same start, scene)
+  std::uint64_t reswept = 0;      ///< proposals swept again here (another start or scene)
 };
 struct SceneCounters {
   std::uint64_t steps = 0, scene_pushouts = 0, pushout_unresolved = 0;
@@ -193,6 +208,11 @@ class HandSolver {
  private:
   bool start(const HandInput& in);
   void generateContacts(const HandInput& in);
+  /// TOC_min of the stepper's last motion (previous -> current poses) against the scene; each
+  /// body's own TOC in body_toc_.
+  double sweepLastMotion(bool* started_inside);
+  /// Clips the last motion (METHOD.md §2 step 5): see stages.cc.
+  void clip(double toc_min);
 
   const HandModel& model_;
   PipelineParams params_;
@@ -202,6 +222,11 @@ class HandSolver {
   std::uint64_t scene_frame_ = 0;
   JointErrors last_errors_;
   std::vector<Contact> contacts_;
+  std::vector<Contact> clip_contacts_;  // scratch: contacts at a clipped pose
+  std::vector<unsigned char> blocked_;  // per body: its last sweep hit (gets shell contacts)
+  std::vector<double> body_toc_;        // per body: TOC of the last sweep
+  std::vector<Pose> X0_, X1_, X_clip_;  // scratch of clip()
+  std::uint64_t per_body_clips_ = 0, uniform_clips_ = 0;
   std::vector<Pose> X_start_;
   HandProposal proposal_;
   SolverCounters counters_;
@@ -241,6 +266,7 @@ class Resolver {
 
   PipelineParams params_;
   CollisionWorld collision_;
+  std::uint64_t scene_frame_ = 0;
   std::vector<unsigned char> dynamic_;
   std::vector<Hand> hands_;
   ForceSet forces_;

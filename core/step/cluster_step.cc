@@ -275,6 +275,14 @@ void ClusterStepper::interpolate(double toc) {
   report_.joint_errors = jointErrors(model_, X_W_.data());
 }
 
+void ClusterStepper::interpolate(const double* toc) {
+  for (size_t b = 0; b < X_W_.size(); ++b) {
+    if (!(toc[b] < 1.0)) continue;
+    X_W_[b] = poseUpdate(X_prev_[b], poseDifference(X_W_[b], X_prev_[b]), std::max(0.0, toc[b]));
+  }
+  report_.joint_errors = jointErrors(model_, X_W_.data());
+}
+
 void ClusterStepper::setMotion(const std::vector<Pose>& X_prev, const std::vector<Pose>& X_new) {
   if (X_prev.size() != model_.bodies.size() || X_new.size() != model_.bodies.size())
     throw std::invalid_argument("setMotion: expected " + std::to_string(model_.bodies.size()) + " poses");

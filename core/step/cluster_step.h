@@ -119,6 +119,8 @@ class ClusterStepper {
   /// motion the sweep assumed). Interpolating each body on its own opens the joints by O(θ²) of
   /// the step's rotation θ: follow with reproject(). toc ≥ 1: no-op.
   void interpolate(double toc);
+  /// The same with one fraction per body (toc[b] ≥ 1: body b keeps its new pose).
+  void interpolate(const double* toc);
   /// The pure projection (no pull towards the goal) from the current poses, against contacts
   /// found at the current poses (Algorithm 1's regenerated contacts): joints re-closed and
   /// limits restored by the M-smallest displacement that moves no contact further in than it
@@ -134,6 +136,8 @@ class ClusterStepper {
   void adoptPoses(const std::vector<Pose>& X_W);
 
   const std::vector<Pose>& poses() const { return X_W_; }
+  /// Poses before the last step (or before setMotion's motion): where interpolate() starts.
+  const std::vector<Pose>& previousPoses() const { return X_prev_; }
   const HandModel& model() const { return model_; }
   const StepParams& params() const { return params_; }
   const StepCounters& counters() const { return counters_; }

@@ -65,6 +65,7 @@ struct Args {
   int pgs_iterations = 30;
   long frames = -1;
   int physics_hz = 240;
+  int substeps = PipelineParams{}.max_substeps;
   bool physics = true, quiet = false, check = false;
 };
 
@@ -110,6 +111,7 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--no-physics") a.physics = false;
     else if (f == "--physics-hz") a.physics_hz = static_cast<int>(parseCount(f, value(), 10, 100000));
     else if (f == "--quiet") a.quiet = true;
+    else if (f == "--substeps") a.substeps = static_cast<int>(parseCount(f, value(), 1, 64));
     else if (f == "--check") a.check = true;
     else fail("unknown argument '" + f + "' (see --help)");
   }
@@ -174,6 +176,7 @@ int main(int argc, char** argv) {
   params.step.solver = args.solver;
   params.step.pgs.sweeps = args.pgs_iterations;
   params.simulate = args.physics;
+  params.max_substeps = args.substeps;
   std::unique_ptr<Pipeline> pipe;
   std::vector<leap::Retargeter> retarget;
   try {

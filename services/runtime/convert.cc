@@ -107,6 +107,12 @@ void toWire(const HandProposal& p, msg::HandProposal* out) {
   out->times().assembly_us(p.times.assembly_us);
   out->times().solve_us(p.times.solve_us);
   out->times().integrate_us(p.times.integrate_us);
+  out->times().ccd_us(p.times.ccd_us);
+  out->substeps(static_cast<std::uint32_t>(p.substeps));
+  out->toc(p.toc);
+  out->clipped(p.clipped);
+  out->swept(p.swept);
+  out->started_inside(p.started_inside);
 }
 
 bool fromWire(const msg::HandProposal& in, std::size_t bodies, int objects, HandProposal* out, std::string* why) {
@@ -137,7 +143,12 @@ bool fromWire(const msg::HandProposal& in, std::size_t bodies, int objects, Hand
   out->flags = in.flags();
   out->joint_errors = JointErrors{in.joint_gap(), in.joint_lock(), in.joint_limit()};
   out->times = SolverTimes{in.times().contacts_us(), in.times().assembly_us(), in.times().solve_us(),
-                           in.times().integrate_us()};
+                           in.times().integrate_us(), in.times().ccd_us()};
+  out->substeps = static_cast<int>(in.substeps());
+  out->toc = in.toc();
+  out->clipped = in.clipped();
+  out->swept = in.swept();
+  out->started_inside = in.started_inside();
   return true;
 }
 
@@ -169,6 +180,9 @@ void toWire(const HandResult& r, const HandModel& model, bool stale, msg::HandSt
   out->solver_times().integrate_us(r.solver_times.integrate_us);
   out->ccd_us(r.ccd_us);
   out->merge_us(r.merge_us);
+  out->solver_times().ccd_us(r.solver_times.ccd_us);
+  out->substeps(static_cast<std::uint32_t>(r.substeps));
+  out->clipped(r.clipped);
 }
 
 bool fromWire(const msg::HandState& in, std::size_t bodies, HandResult* out, std::string* why) {
@@ -189,9 +203,12 @@ bool fromWire(const msg::HandState& in, std::size_t bodies, HandResult* out, std
   out->joint_errors = JointErrors{in.joint_gap(), in.joint_lock(), in.joint_limit()};
   out->force_N = in.force_n();
   out->solver_times = SolverTimes{in.solver_times().contacts_us(), in.solver_times().assembly_us(),
-                                  in.solver_times().solve_us(), in.solver_times().integrate_us()};
+                                  in.solver_times().solve_us(), in.solver_times().integrate_us(),
+                                  in.solver_times().ccd_us()};
   out->ccd_us = in.ccd_us();
   out->merge_us = in.merge_us();
+  out->substeps = static_cast<int>(in.substeps());
+  out->clipped = in.clipped();
   return true;
 }
 
