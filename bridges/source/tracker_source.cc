@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "dtrack/dtrack.h"
+#include "skeleton/jsonl.h"
 #include "source/recording.h"
 
 namespace godhand::bridges {
@@ -193,8 +194,31 @@ std::vector<RawRecord> dtrackFileRecords(const std::string& path) {
   return out;
 }
 
+std::unique_ptr<FrameReplay> jsonlReplay(const std::string& path, const SourceOptions& o) {
+  skeleton::JsonlRecording r;
+  try {
+    r = skeleton::readJsonl(readFile(path), path, o.X_WT);
+  } catch (const skeleton::JsonlError& e) {
+    throw SourceError(e.what());
+  }
+  std::uint64_t dropped = 0;
+  for (TrackerFrame& f : r.frames) dropped += applyHandSides(&f, o);
+  SourceStats s;
+  s.received = r.lines;
+  s.by_reason = r.by_reason;
+  for (const auto& [k, v] : r.by_reason) s.rejected += v;
+  s.detail = r.summary();
+  if (dropped) {
+    s.detail += "; hands not in the hand map " + std::to_string(dropped);
+    s.by_reason.emplace_back("hand not in the hand map", dropped);
+    s.rejected += dropped;
+  }
+  return std::make_unique<FrameReplay>(r.format + " replay", path, std::move(r.frames), std::move(s), o.frames);
+}
+
 std::unique_ptr<FrameReplay> openReplay(const std::string& path, const std::string& format, const SourceOptions& o) {
   if (format == "leap") return leapReplay(path, o);
+  if (format == "openxr" || format == "mediapipe") return jsonlReplay(path, o);
   if (format == "dtrack") return dtrackReplay(path, dtrackFileRecords(path), o, "dtrack replay");
   if (format == "raw") {
     std::string kind;
@@ -310,12 +334,19 @@ double number(const std::string& s, const std::string& what) {
 std::string detectFormat(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw SourceError(path + ": cannot open (" + std::strerror(errno) + ")");
-  char buf[64] = {};
+  char buf[4096] = {};
   in.read(buf, sizeof buf);
   const std::string head(buf, static_cast<size_t>(in.gcount()));
   size_t i = 0;
   while (i < head.size() && std::isspace(static_cast<unsigned char>(head[i]))) ++i;
-  if (i < head.size() && head[i] == '{') return "leap";
+  if (i < head.size() && head[i] == '{') {
+    const size_t nl = head.find('\n');
+    if (nl != std::string::npos) {
+      const std::string f = skeleton::jsonlFormat(head.substr(0, nl));
+      if (!f.empty()) return f;
+    }
+    return "leap";
+  }
   if (head.compare(0, 11, "godhand-raw") == 0) return "raw";
   if (head.compare(0, 3, "fr ") == 0) return "dtrack";
   return "";
@@ -391,7 +422,7 @@ std::unique_ptr<TrackerSource> openSource(const std::string& spec, const SourceO
   if (spec.rfind("raw:", 0) == 0) return openReplay(spec.substr(4), "raw", o);
   const std::string format = detectFormat(spec);
   if (format.empty())
-    throw SourceError(spec + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...) or a godhand raw recording)");
+    throw SourceError(spec + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...), OpenXR / MediaPipe JSON Lines or a godhand raw recording)");
   return openReplay(spec, format, o);
 }
 
@@ -414,7 +445,7 @@ LoadedRecording loadRecording(const std::string& path, const SourceOptions& opti
   if (path.find("://") != std::string::npos) throw SourceError(path + ": a live source, not a recording file");
   const std::string format = detectFormat(path);
   if (format.empty())
-    throw SourceError(path + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...) or a godhand raw recording)");
+    throw SourceError(path + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...), OpenXR / MediaPipe JSON Lines or a godhand raw recording)");
   SourceOptions o = options;
   o.frames = 0;
   const std::unique_ptr<FrameReplay> r = openReplay(path, format, o);

@@ -90,7 +90,8 @@ class TrackerSource {
 /// Opens a source. spec:
 ///  - a recording file of any supported format, detected by content (not by its name): Leap
 ///    Motion JSON (bridges/leap/leap_recording.h), DTrack datagrams (.dtrack, bridges/dtrack),
-///    a godhand raw recording (`godhand-ingest --record`, recording.h);
+///    a godhand raw recording (`godhand-ingest --record`, recording.h), OpenXR / MediaPipe JSON
+///    Lines (bridges/skeleton/jsonl.h);
 ///  - "leap:FILE" / "dtrack:FILE" force a reader;
 ///  - "dtrack://HOST:PORT" a live DTrack UDP stream received on HOST:PORT (HOST an IPv4 address,
 ///    e.g. 127.0.0.1; default port 5000 when ":PORT" is omitted).
@@ -98,7 +99,8 @@ class TrackerSource {
 std::unique_ptr<TrackerSource> openSource(const std::string& spec, std::int64_t frames = 0);
 std::unique_ptr<TrackerSource> openSource(const std::string& spec, const SourceOptions& options);
 
-/// The format of a recording file by its first bytes: "leap", "dtrack", "raw", or "" (unknown).
+/// The format of a recording file by its first bytes: "leap", "dtrack", "raw", "openxr",
+/// "mediapipe" (JSON Lines with a godhand header line, bridges/skeleton/jsonl.h), or "" (unknown).
 std::string detectFormat(const std::string& path);
 
 /// The best tracked hand of a side in a frame (highest confidence), nullptr if none.

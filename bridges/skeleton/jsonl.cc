@@ -1,0 +1,154 @@
+#include "skeleton/jsonl.h"
+
+#include <cmath>
+#include <map>
+#include <nlohmann/json.hpp>
+
+namespace godhand::skeleton {
+
+namespace {
+
+using json = nlohmann::json;
+
+struct Counter {
+  std::map<std::string, std::uint64_t> n;
+  void add(const std::string& r) { ++n[r]; }
+};
+
+/// Reads k finite numbers from an array; returns 0 ok, 1 shape, 2 not finite (JSON null).
+int numbers(const json& a, size_t k, double* out) {
+  if (!a.is_array() || a.size() != k) return 1;
+  for (size_t i = 0; i < k; ++i) {
+    if (a[i].is_null()) return 2;
+    if (!a[i].is_number()) return 1;
+    out[i] = a[i].get<double>();
+    if (!std::isfinite(out[i])) return 2;
+  }
+  return 0;
+}
+
+}  // namespace
+
+std::string jsonlFormat(const std::string& first_line) {
+  const json h = json::parse(first_line, nullptr, false);
+  if (!h.is_object()) return "";
+  const auto f = h.find("format");
+  if (f == h.end() || !f->is_string()) return "";
+  if (*f == "godhand-openxr-hands") return "openxr";
+  if (*f == "godhand-mediapipe-world") return "mediapipe";
+  return "";
+}
+
+std::string JsonlRecording::summary() const {
+  std::string s = format + " lines " + std::to_string(frames.size()) + "/" + std::to_string(lines) + " kept, hands " +
+                  std::to_string(hands_kept) + " (rejected: ";
+  if (by_reason.empty()) s += "none";
+  for (size_t i = 0; i < by_reason.size(); ++i) s += (i ? ", " : "") + by_reason[i].first + " " + std::to_string(by_reason[i].second);
+  return s + ")";
+}
+
+JsonlRecording readJsonl(const std::string& text, const std::string& name, const Pose& X_WT) {
+  JsonlRecording rec;
+  size_t pos = text.find('\n');
+  const std::string header = text.substr(0, pos);
+  rec.format = jsonlFormat(header);
+  if (rec.format.empty()) throw JsonlError(name + ": not a godhand JSON Lines recording (header {\"format\": ...} expected)");
+  {
+    const json h = json::parse(header, nullptr, false);
+    const auto v = h.find("version");
+    if (v == h.end() || !v->is_number_integer() || v->get<int>() != 1) throw JsonlError(name + ": unsupported version (expected 1)");
+  }
+  const bool xr = rec.format == "openxr";
+  Counter c;
+  std::int64_t last_t = 0;
+  bool have_t = false;
+  while (pos != std::string::npos && pos < text.size()) {
+    const size_t b = pos + 1;
+    pos = text.find('\n', b);
+    const std::string line = text.substr(b, pos == std::string::npos ? std::string::npos : pos - b);
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    ++rec.lines;
+    const json j = json::parse(line, nullptr, false);
+    if (!j.is_object()) { c.add("line: parse error"); continue; }
+    const auto t = j.find(xr ? "time_ns" : "time_us");
+    const auto hands = j.find("hands");
+    if (t == j.end() || !t->is_number_integer() || hands == j.end() || !hands->is_array()) { c.add("line: parse error"); continue; }
+    const std::int64_t tu = xr ? t->get<std::int64_t>() / 1000 : t->get<std::int64_t>();
+    if (have_t && tu <= last_t) { c.add("line: stale/duplicate time"); continue; }
+    leap::TrackerFrame f;
+    f.timestamp_us = tu;
+    f.frame_id = static_cast<std::int64_t>(rec.lines);
+    int index = 0;
+    for (const json& h : *hands) {
+      ++index;
+      if (!h.is_object()) { c.add("hand: parse error"); continue; }
+      const auto side = h.find(xr ? "side" : "handedness");
+      if (side == h.end() || !side->is_string()) { c.add("hand: parse error"); continue; }
+      const std::string s = side->get<std::string>();
+      bool right;
+      if (s == "right" || s == "Right") right = true;
+      else if (s == "left" || s == "Left") right = false;
+      else { c.add("hand: parse error"); continue; }
+      double conf = 1.0;
+      const auto cf = h.find(xr ? "confidence" : "score");
+      if (cf != h.end()) {
+        if (cf->is_null()) { c.add("hand: NaN/Inf"); continue; }
+        if (!cf->is_number()) { c.add("hand: parse error"); continue; }
+        conf = cf->get<double>();
+      }
+      int id = right ? 1 : 0;
+      const auto idj = h.find("id");
+      if (idj != h.end()) {
+        if (!idj->is_number_integer()) { c.add("hand: parse error"); continue; }
+        id = idj->get<int>();
+      }
+      leap::TrackedHand th;
+      Reject why = Reject::kDegenerate;
+      bool ok = false;
+      if (xr) {
+        const auto act = h.find("active");
+        if (act != h.end() && act->is_boolean() && !act->get<bool>()) { c.add("hand: not active (untracked)"); continue; }
+        const auto js = h.find("joints");
+        if (js == h.end() || !js->is_array() || js->size() != kXrJoints) { c.add("hand: parse error"); continue; }
+        std::array<XrJoint, kXrJoints> joints;
+        int bad = 0;
+        for (size_t k = 0; k < kXrJoints && !bad; ++k) {
+          double v[9];
+          bad = numbers((*js)[k], 9, v);
+          joints[k].p = Vec3(v[0], v[1], v[2]);
+          joints[k].q = Quat(v[6], v[3], v[4], v[5]);
+          joints[k].radius = v[7];
+          if (!bad && (v[8] < 0 || v[8] > 15 || std::floor(v[8]) != v[8])) bad = 1;
+          joints[k].flags = bad ? 0u : static_cast<std::uint32_t>(v[8]);
+        }
+        if (bad) { c.add(bad == 2 ? "hand: NaN/Inf" : "hand: parse error"); continue; }
+        ok = handFromOpenXr(joints, right, conf, id, X_WT, &th, &why);
+      } else {
+        const auto lm = h.find("landmarks");
+        if (lm == h.end() || !lm->is_array() || lm->size() != kLandmarks) { c.add("hand: parse error"); continue; }
+        double o[3] = {0, 0, 0};
+        const auto org = h.find("origin");
+        int bad = org == h.end() ? 0 : numbers(*org, 3, o);
+        std::array<Vec3, kLandmarks> p;
+        for (size_t k = 0; k < kLandmarks && !bad; ++k) {
+          double v[3];
+          bad = numbers((*lm)[k], 3, v);
+          // camera (x right, y down, z forward) -> T (x right, y forward, z up)
+          p[k] = Vec3(v[0] + o[0], v[2] + o[2], -(v[1] + o[1]));
+        }
+        if (bad) { c.add(bad == 2 ? "hand: NaN/Inf" : "hand: parse error"); continue; }
+        ok = handFromLandmarks(p, right, conf, id, X_WT, &th, &why);
+      }
+      if (!ok) { c.add(std::string("hand: ") + reasonName(why)); continue; }
+      f.hands.push_back(th);
+      ++rec.hands_kept;
+    }
+    have_t = true;
+    last_t = tu;
+    rec.frames.push_back(std::move(f));
+  }
+  for (const auto& [k, v] : c.n) rec.by_reason.emplace_back(k, v);
+  return rec;
+}
+
+}  // namespace godhand::skeleton
