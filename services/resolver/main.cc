@@ -7,11 +7,14 @@
 // is in, or after --merge-wait of the frame period with what is there (a missing cluster is held
 // at its last pose and marked stale); the newest scene is used, and when it is older than the
 // lab's stale_after_s every HandState is marked stale (the hands are held against the last scene).
+#include <algorithm>
 #include <cstdio>
 #include <map>
 
 #include "model/hand_model.h"
 #include "runtime/convert.h"
+#include "runtime/live_merge.h"
+#include "runtime/lockstep_gate.h"
 #include "runtime/service.h"
 #include "scene/scene_file.h"
 
@@ -87,8 +90,8 @@ int main(int argc, char** argv) {
   std::fprintf(stderr, "resolver: %zu cluster(s), scene '%s' (%lld triangles), %.3f Hz, %s mode\n", C, scene.name.c_str(),
                scene.god_triangles, service.frameRate(), service.lockstep() ? "lock-step" : "live");
 
-  // Lock-step: frame -> every cluster's proposal. Live: the newest unresolved proposal per
-  // cluster (clusters may be at different frames: a lagging solver is not starved).
+  // Payloads: lock-step, frame -> every cluster's proposal; live, the newest unresolved proposal
+  // per cluster. What to resolve and when: svc::LockstepGate / svc::LiveMerge (injected clock).
   struct Slot {
     std::vector<HandProposal> p;
     std::vector<msg::Stamp> stamp;
@@ -99,15 +102,18 @@ int main(int argc, char** argv) {
   live.p.resize(C);
   live.stamp.resize(C);
   live.have.assign(C, 0);
-  std::vector<std::uint64_t> done_h(C, 0);              // live: newest frame resolved per cluster
-  std::vector<SteadyClock::time_point> last_in(C);      // live: last proposal arrival per cluster
-  SteadyClock::time_point first_pending{}, last_publish = SteadyClock::now();
-  std::uint64_t run = 0;                                 // the ingest run being resolved
-  std::int64_t run_source_ns = 0;
+  const double deadline = service.deadlineSeconds();
+  const double period = 1.0 / service.frameRate();
+  const double stale_after = service.staleAfterSeconds();
+  // Lock-step inputs of frame k: every cluster's HandProposal(k) (they start the deadline) and,
+  // as input C, SceneState(k-1).
+  std::vector<bool> triggers(C + 1, true);
+  triggers[C] = false;
+  svc::LockstepGate gate(triggers, deadline, SteadyClock::now());
+  svc::LiveMerge merge(C, period, merge_wait, stale_after, SteadyClock::now());
   std::map<std::uint64_t, SceneSnapshot> scenes;
   SteadyClock::time_point scene_seen = SteadyClock::now();
   bool have_scene = false;
-  std::uint64_t done = 0;  // lock-step: newest frame resolved; live: newest frame published
   msg::HandProposal mp;
   msg::SceneState ss;
   std::string why;
@@ -120,8 +126,9 @@ int main(int argc, char** argv) {
       if (mp.cluster() != lab.clusters[h].name) { service.reject("hand_proposal: cluster name does not match the lab (another lab on this domain?)"); continue; }
       if (!svc::fromWire(mp, models[h].bodies.size(), objects, &tmp, &why)) { service.reject("hand_proposal: " + why); continue; }
       if (mp.loads_truncated()) service.reject("hand_proposal: more loaded contacts than the wire carries (dropped; not bit-identical)");
+      const SteadyClock::time_point now = SteadyClock::now();
       if (service.lockstep()) {
-        if (tmp.frame <= done) { ++service.late; continue; }
+        if (!gate.offer(h, tmp.frame, now)) { ++service.late; continue; }
         Slot& s = frames[tmp.frame];
         if (s.p.empty()) {
           s.p.resize(C);
@@ -133,100 +140,66 @@ int main(int argc, char** argv) {
         s.have[h] = 1;
         continue;
       }
-      // Live: a new ingest run (frame numbers start again) replaces the old one.
-      if (mp.stamp().run() != run) {
-        if (run != 0 && mp.stamp().source_time_ns() < run_source_ns) { ++service.late; continue; }  // a straggler of an old run
-        run = mp.stamp().run();
-        std::fill(done_h.begin(), done_h.end(), 0);
-        std::fill(live.have.begin(), live.have.end(), 0);
-      }
-      run_source_ns = std::max(run_source_ns, mp.stamp().source_time_ns());
-      if (tmp.frame <= done_h[h]) { ++service.late; continue; }
-      if (live.have[h]) ++service.late;  // superseded before it was resolved
-      bool any = false;
-      for (unsigned char x : live.have) any = any || x;
-      if (!any) first_pending = SteadyClock::now();
+      const svc::LiveMerge::Offer o = merge.offer(h, mp.stamp().run(), tmp.frame, mp.stamp().source_time_ns(), now);
+      if (o == svc::LiveMerge::Offer::Late) { ++service.late; continue; }
+      if (o == svc::LiveMerge::Offer::Superseded) ++service.late;  // superseded before it was resolved
       live.p[h] = tmp;
       live.stamp[h] = mp.stamp();
-      live.have[h] = 1;
-      last_in[h] = SteadyClock::now();
     }
     while (scene_in.take(ss)) {
       SceneSnapshot s;
       if (!svc::fromWire(ss, objects, &s, &why)) { service.reject("scene_state: " + why); continue; }
       scene_seen = SteadyClock::now();
-      if (service.lockstep()) scenes[s.frame] = std::move(s);
-      else {
+      if (service.lockstep()) {
+        if (gate.offer(C, s.frame + 1, scene_seen)) scenes[s.frame] = std::move(s);
+      } else {
         resolver->setScene(s);
         have_scene = true;
       }
     }
   };
-  auto complete = [&](const Slot& s) {
-    for (unsigned char h : s.have)
-      if (!h) return false;
-    return true;
-  };
 
   std::vector<const HandProposal*> ptrs(C);
   msg::HandState out;
   msg::ContactForces forces;
-  const double deadline = service.deadlineSeconds();
-  const double period = 1.0 / service.frameRate();
-  const double stale_after = service.staleAfterSeconds();
-  auto seconds = [](double x) { return std::chrono::duration_cast<SteadyClock::duration>(std::chrono::duration<double>(x)); };
   while (!service.stopping()) {
     drain();
     std::uint64_t k = 0;
     Slot* s = nullptr;
+    svc::LiveMerge::Decision decision;
     if (service.lockstep()) {
-      k = done + 1;
-      if (!frames.count(k)) {
+      const svc::LockstepGate::Poll poll = gate.poll(SteadyClock::now());
+      if (poll.state == svc::LockstepGate::State::Idle) {
         if (!service.wait(after(0.1))) break;
         continue;
       }
-      const auto until = after(deadline);
-      for (;;) {
-        drain();
-        if (complete(frames[k]) && scenes.count(k - 1)) break;
-        if (SteadyClock::now() >= until) {
-          ++service.deadline_misses;
-          return service.finish(3, "lock-step frame " + std::to_string(k) + ": " +
-                                       (scenes.count(k - 1) ? "a cluster's HandProposal" : "SceneState of frame " + std::to_string(k - 1)) +
-                                       " missing after " + std::to_string(deadline) + " s");
-        }
-        if (!service.wait(until)) return service.finish(0);
+      if (poll.state == svc::LockstepGate::State::Missed) {
+        ++service.deadline_misses;
+        const bool scene_missing = std::find(poll.missing.begin(), poll.missing.end(), C) != poll.missing.end();
+        return service.finish(3, "lock-step frame " + std::to_string(gate.next()) + ": " +
+                                     (scene_missing ? "SceneState of frame " + std::to_string(gate.next() - 1) : "a cluster's HandProposal") +
+                                     " missing after " + std::to_string(deadline) + " s");
       }
+      if (poll.state == svc::LockstepGate::State::Waiting) {
+        if (!service.wait(poll.until)) return service.finish(0);
+        continue;
+      }
+      k = gate.next();
       resolver->setScene(scenes[k - 1]);
       scenes.erase(scenes.begin(), scenes.lower_bound(k));
       s = &frames[k];
     } else {
       const SteadyClock::time_point now = SteadyClock::now();
-      bool any = false, ready = true;
-      for (size_t h = 0; h < C; ++h) {
-        any = any || live.have[h];
-        // A cluster that has gone quiet is not waited for.
-        const bool alive = last_in[h] != SteadyClock::time_point{} && now - last_in[h] < seconds(stale_after);
-        if (alive && !live.have[h]) ready = false;
-      }
-      if (!have_scene || !any) {
-        // Nothing new: re-publish the held hands, marked stale, so that subscribers (and late
-        // joiners) see that nothing upstream is moving them.
-        if (have_scene && now - last_publish > seconds(stale_after)) {
-          k = done;
-          s = &live;
-        } else {
-          if (!service.wait(after(0.05), have_scene ? "running" : "waiting")) break;
-          continue;
-        }
-      } else if (!ready && now < first_pending + seconds(merge_wait * period)) {
-        if (!service.wait(first_pending + seconds(merge_wait * period))) break;
+      decision = merge.decide(have_scene, now);
+      if (decision.kind == svc::LiveMerge::Decision::Wait) {
+        if (!service.wait(decision.until, have_scene ? "running" : "waiting")) break;
         continue;
-      } else {
-        s = &live;
-        for (size_t h = 0; h < C; ++h)
-          if (live.have[h]) k = std::max(k, live.p[h].frame);
       }
+      // Republish: nothing new, the held hands again, marked stale, so that subscribers (and late
+      // joiners) see that nothing upstream is moving them.
+      k = decision.frame;
+      for (size_t h = 0; h < C; ++h) live.have[h] = merge.pending(h);
+      s = &live;
     }
     for (size_t h = 0; h < C; ++h) ptrs[h] = s->have[h] ? &s->p[h] : nullptr;
     resolver->resolve(ptrs, k);
@@ -234,7 +207,7 @@ int main(int argc, char** argv) {
         !service.lockstep() && std::chrono::duration<double>(SteadyClock::now() - scene_seen).count() > stale_after;
     // The stamp of the frame: the newest source stamp among its proposals.
     msg::Stamp stamp;
-    stamp.run(run);
+    stamp.run(service.lockstep() ? 0 : merge.run());
     stamp.frame(k);
     for (size_t h = 0; h < C; ++h)
       if (s->have[h] && s->stamp[h].source_time_ns() >= stamp.source_time_ns()) stamp = s->stamp[h];
@@ -261,13 +234,11 @@ int main(int argc, char** argv) {
     bool resolved_any = false;
     for (unsigned char x : s->have) resolved_any = resolved_any || x;
     if (resolved_any) service.processed(k, stamp.source_time_ns());
-    last_publish = SteadyClock::now();
-    done = std::max(done, k);
     if (service.lockstep()) {
       frames.erase(frames.begin(), frames.upper_bound(k));
+      gate.advance(SteadyClock::now());
     } else {
-      for (size_t h = 0; h < C; ++h)
-        if (live.have[h]) done_h[h] = live.p[h].frame;
+      merge.published(decision, SteadyClock::now());
       std::fill(live.have.begin(), live.have.end(), 0);
     }
   }

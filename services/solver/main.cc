@@ -6,11 +6,13 @@
 // cluster's HandState(k-1); once the target is in, the rest must come within the deadline.
 // Live: steps on each new target with the newest scene; a step always starts from a resolved
 // state (the last HandState adopted), never from its own unresolved proposal.
+#include <algorithm>
 #include <cstdio>
 #include <map>
 
 #include "model/hand_model.h"
 #include "runtime/convert.h"
+#include "runtime/lockstep_gate.h"
 #include "runtime/service.h"
 #include "scene/scene_file.h"
 
@@ -99,7 +101,12 @@ int main(int argc, char** argv) {
   msg::SceneState ss;
   msg::HandState hs;
   std::string why;
+  // Lock-step inputs of frame k (svc::LockstepGate, injected clock): the HandTarget(k) starts the
+  // deadline; SceneState(k-1) and this hand's HandState(k-1) (none before frame 1) must follow.
+  svc::LockstepGate gate({true, false, false}, service.deadlineSeconds(), SteadyClock::now());
+  gate.waive(2, 1);
   auto drain = [&] {
+    const SteadyClock::time_point now = SteadyClock::now();
     while (targets_in.take(t)) {
       if (t.hand() != index) continue;
       if (t.cluster() != cluster_name) { service.reject("hand_target: cluster name does not match the lab (another lab on this domain?)"); continue; }
@@ -108,14 +115,19 @@ int main(int argc, char** argv) {
         targets.clear();
       }
       ++service.samples_in;
-      if (!targets.empty() && t.stamp().frame() <= targets.rbegin()->first && !service.lockstep()) ++service.late;
+      if (service.lockstep()) {
+        if (!gate.offer(0, t.stamp().frame(), now)) { ++service.late; continue; }
+      } else if (!targets.empty() && t.stamp().frame() <= targets.rbegin()->first) {
+        ++service.late;
+      }
       targets[t.stamp().frame()] = t;
     }
     while (scene_in.take(ss)) {
       SceneSnapshot s;
       if (!svc::fromWire(ss, objects, &s, &why)) { service.reject("scene_state: " + why); continue; }
-      if (service.lockstep()) scenes[s.frame] = std::move(s);
-      else {  // live: the newest by arrival (a restarted scene starts again at frame 0)
+      if (service.lockstep()) {
+        if (gate.offer(1, s.frame + 1, now)) scenes[s.frame] = std::move(s);
+      } else {  // live: the newest by arrival (a restarted scene starts again at frame 0)
         solver->setScene(s);
         have_scene = true;
       }
@@ -124,8 +136,9 @@ int main(int argc, char** argv) {
       if (hs.hand() != index) continue;
       HandResult r;
       if (!svc::fromWire(hs, n, &r, &why)) { service.reject("hand_state: " + why); continue; }
-      if (service.lockstep()) states[r.frame] = std::move(r);
-      else {  // live: the newest by arrival (a restarted resolver or ingest numbers frames anew)
+      if (service.lockstep()) {
+        if (gate.offer(2, r.frame + 1, now)) states[r.frame] = std::move(r);
+      } else {  // live: the newest by arrival (a restarted resolver or ingest numbers frames anew)
         latest_state = std::move(r);
         latest_new = true;
       }
@@ -144,24 +157,21 @@ int main(int argc, char** argv) {
   while (!service.stopping()) {
     drain();
     if (service.lockstep()) {
-      if (!targets.count(next)) {
+      const svc::LockstepGate::Poll poll = gate.poll(SteadyClock::now());
+      if (poll.state == svc::LockstepGate::State::Idle) {
         if (!service.wait(after(0.1), "running")) break;
         continue;
       }
-      // The target of frame `next` is in: the scene of next-1 and our state of next-1 must follow.
-      const auto until = after(deadline);
-      for (;;) {
-        drain();
-        const bool ok_scene = scenes.count(next - 1) > 0;
-        const bool ok_state = next == 1 || states.count(next - 1) > 0;
-        if (ok_scene && ok_state) break;
-        if (SteadyClock::now() >= until) {
-          ++service.deadline_misses;
-          return service.finish(3, "lock-step frame " + std::to_string(next) + ": no " +
-                                       (ok_scene ? "HandState of frame " : "SceneState of frame ") +
-                                       std::to_string(next - 1) + " within " + std::to_string(deadline) + " s");
-        }
-        if (!service.wait(until)) return service.finish(0);
+      if (poll.state == svc::LockstepGate::State::Missed) {
+        ++service.deadline_misses;
+        const bool scene_missing = std::find(poll.missing.begin(), poll.missing.end(), size_t{1}) != poll.missing.end();
+        return service.finish(3, "lock-step frame " + std::to_string(next) + ": no " +
+                                     (scene_missing ? "SceneState of frame " : "HandState of frame ") + std::to_string(next - 1) +
+                                     " within " + std::to_string(deadline) + " s");
+      }
+      if (poll.state == svc::LockstepGate::State::Waiting) {
+        if (!service.wait(poll.until)) return service.finish(0);
+        continue;
       }
       solver->setScene(scenes[next - 1]);
       if (next > 1 && states.count(next - 1)) solver->adopt(states[next - 1]);
@@ -206,7 +216,10 @@ int main(int argc, char** argv) {
     else service.reject("hand_proposal: write failed");
     service.processed(next, target.stamp().source_time_ns());
     targets.erase(targets.begin(), targets.upper_bound(next));
-    if (service.lockstep()) ++next;
+    if (service.lockstep()) {
+      ++next;
+      gate.advance(SteadyClock::now());
+    }
   }
   return service.finish(0);
 }

@@ -1,0 +1,132 @@
+// The stages' scheduling rules on an injected clock (no processes, no sleeping): the lock-step
+// gate (runtime/lockstep_gate.h) and the resolver's live merge (runtime/live_merge.h). Oracles:
+// the decisions worked out by hand for short, explicit timelines.
+#include <gtest/gtest.h>
+
+#include <chrono>
+
+#include "runtime/live_merge.h"
+#include "runtime/lockstep_gate.h"
+
+using namespace godhand::svc;
+using namespace std::chrono_literals;
+using G = LockstepGate;
+using M = LiveMerge;
+
+namespace {
+const G::Clock::time_point T0 = G::Clock::time_point{} + 100s;
+}
+
+TEST(LockstepGate, ReadyWhenEveryInputOfTheFrameIsIn) {
+  // The resolver's shape: two proposals (triggers) and the scene of k-1 (input 2).
+  G g({true, true, false}, 1.0, T0);
+  EXPECT_EQ(g.poll(T0).state, G::State::Idle);
+  EXPECT_TRUE(g.offer(2, 1, T0));  // SceneState(0) for frame 1: no trigger yet, still idle
+  EXPECT_EQ(g.poll(T0 + 5s).state, G::State::Idle);
+  EXPECT_TRUE(g.offer(0, 1, T0 + 5s));
+  G::Poll p = g.poll(T0 + 5s);
+  EXPECT_EQ(p.state, G::State::Waiting);
+  EXPECT_EQ(p.until, T0 + 6s);  // deadline from the first trigger
+  ASSERT_EQ(p.missing.size(), 1u);
+  EXPECT_EQ(p.missing[0], 1u);
+  EXPECT_TRUE(g.offer(1, 1, T0 + 5500ms));
+  EXPECT_EQ(g.poll(T0 + 5500ms).state, G::State::Ready);
+  g.advance(T0 + 5600ms);
+  EXPECT_EQ(g.next(), 2u);
+  EXPECT_FALSE(g.offer(0, 1, T0 + 6s));  // late: frame 1 is done
+  EXPECT_EQ(g.poll(T0 + 6s).state, G::State::Idle);
+}
+
+TEST(LockstepGate, MissesTheDeadlineAndNamesWhatIsMissing) {
+  G g({true, false, false}, 2.0, T0);  // the solver's shape: target, scene k-1, state k-1
+  g.waive(2, 1);                       // no state before frame 1
+  g.offer(0, 1, T0);
+  EXPECT_EQ(g.poll(T0 + 1999ms).state, G::State::Waiting);
+  const G::Poll p = g.poll(T0 + 2s);
+  EXPECT_EQ(p.state, G::State::Missed);
+  ASSERT_EQ(p.missing.size(), 1u);
+  EXPECT_EQ(p.missing[0], 1u);  // the scene
+}
+
+TEST(LockstepGate, EarlyInputsWaitForTheirFrameAndTheDeadlineStartsWhenItIsNext) {
+  G g({true, false}, 1.0, T0);
+  g.offer(1, 1, T0);
+  g.offer(0, 2, T0);  // frame 2's trigger before frame 1 is even triggered
+  EXPECT_EQ(g.poll(T0 + 10s).state, G::State::Idle);  // frame 1 has no trigger
+  g.offer(0, 1, T0 + 10s);
+  ASSERT_EQ(g.poll(T0 + 10s).state, G::State::Ready);
+  g.advance(T0 + 10s);
+  // Frame 2 was triggered at T0 but became next only now: its deadline runs from now.
+  const G::Poll p = g.poll(T0 + 10500ms);
+  EXPECT_EQ(p.state, G::State::Waiting);
+  EXPECT_EQ(p.until, T0 + 11s);
+  EXPECT_FALSE(g.offer(5, 2, T0));  // unknown input
+}
+
+TEST(LiveMerge, ResolvesWhenEveryLiveClusterIsInOrAfterTheMergeWait) {
+  // 2 clusters, 20 ms frames, wait at most half a frame, stale after 250 ms.
+  M m(2, 0.020, 0.5, 0.25, T0);
+  EXPECT_EQ(m.decide(true, T0).kind, M::Decision::Wait);  // nothing yet
+  EXPECT_EQ(m.offer(0, 7, 1, 1000, T0), M::Offer::NewRun);
+  // Cluster 1 has never been heard of: not waited for.
+  M::Decision d = m.decide(true, T0);
+  EXPECT_EQ(d.kind, M::Decision::Resolve);
+  EXPECT_EQ(d.frame, 1u);
+  m.published(d, T0);
+  EXPECT_FALSE(m.pending(0));
+  EXPECT_EQ(m.offer(1, 7, 1, 1000, T0 + 1ms), M::Offer::Accepted);
+  // Cluster 0 is live (heard of 1 ms ago) and has nothing new: wait half a frame for it.
+  d = m.decide(true, T0 + 1ms);
+  EXPECT_EQ(d.kind, M::Decision::Wait);
+  EXPECT_EQ(d.until, T0 + 11ms);
+  m.published(d, T0 + 1ms);  // a Wait changes nothing
+  EXPECT_TRUE(m.pending(1));
+  d = m.decide(true, T0 + 11ms);
+  EXPECT_EQ(d.kind, M::Decision::Resolve);
+  m.published(d, T0 + 11ms);
+  // Both live now: frame 2 of cluster 0 waits for cluster 1, at most 10 ms.
+  m.offer(0, 7, 2, 2000, T0 + 20ms);
+  d = m.decide(true, T0 + 25ms);
+  EXPECT_EQ(d.kind, M::Decision::Wait);
+  EXPECT_EQ(d.until, T0 + 30ms);
+  d = m.decide(true, T0 + 30ms);
+  EXPECT_EQ(d.kind, M::Decision::Resolve);  // cluster 1 is held
+  EXPECT_EQ(d.frame, 2u);
+  m.published(d, T0 + 30ms);
+  // Cluster 1's frame 2 arrives after: still newer than what it had resolved, accepted.
+  EXPECT_EQ(m.offer(1, 7, 2, 2000, T0 + 31ms), M::Offer::Accepted);
+  EXPECT_EQ(m.offer(1, 7, 3, 3000, T0 + 32ms), M::Offer::Superseded);
+  EXPECT_EQ(m.frameOf(1), 3u);
+  EXPECT_EQ(m.decide(true, T0 + 32ms).kind, M::Decision::Wait);  // cluster 0 is live, not in
+}
+
+TEST(LiveMerge, LateAndOldRunsAreDroppedANewRunReplacesTheOld) {
+  M m(1, 0.020, 0.5, 0.25, T0);
+  m.offer(0, 7, 5, 5000, T0);
+  M::Decision d = m.decide(true, T0);
+  m.published(d, T0);
+  EXPECT_EQ(m.offer(0, 7, 5, 5000, T0 + 1ms), M::Offer::Late);   // already resolved
+  EXPECT_EQ(m.offer(0, 7, 4, 4000, T0 + 1ms), M::Offer::Late);   // older
+  EXPECT_EQ(m.offer(0, 9, 1, 9000, T0 + 2ms), M::Offer::NewRun); // a restarted ingest: frame 1 again
+  EXPECT_EQ(m.run(), 9u);
+  EXPECT_EQ(m.offer(0, 7, 6, 6000, T0 + 3ms), M::Offer::Late);   // a straggler of the old run
+  EXPECT_EQ(m.run(), 9u);
+}
+
+TEST(LiveMerge, RepublishesHeldHandsWhenNothingComesAndNeverWithoutAScene) {
+  M m(2, 0.020, 0.5, 0.25, T0);
+  m.offer(0, 7, 3, 3000, T0);
+  m.offer(1, 7, 3, 3000, T0);
+  M::Decision d = m.decide(false, T0);
+  EXPECT_EQ(d.kind, M::Decision::Wait);  // no scene yet: nothing is resolved
+  d = m.decide(true, T0);
+  ASSERT_EQ(d.kind, M::Decision::Resolve);
+  m.published(d, T0);
+  EXPECT_EQ(m.decide(true, T0 + 250ms).kind, M::Decision::Wait);
+  d = m.decide(true, T0 + 251ms);
+  EXPECT_EQ(d.kind, M::Decision::Republish);
+  EXPECT_EQ(d.frame, 3u);
+  m.published(d, T0 + 251ms);
+  EXPECT_EQ(m.decide(true, T0 + 400ms).kind, M::Decision::Wait);
+  EXPECT_EQ(m.decide(false, T0 + 10s).kind, M::Decision::Wait);  // never without a scene
+}
