@@ -393,9 +393,35 @@ async function caseOffline() {
   const sc = await page.evaluate(() => window.godhand.scene);
   check(sc && sc.meshes === sc.objects && sc.triangles > 1000, `offline scene meshes drawn (${JSON.stringify(sc)})`);
   check(page.errors.length === 0, `no page errors (${page.errors.slice(0, 3).join(' | ')})`);
-  await browser.close();
   const vr = await stop(v.proc);
   check(vr.code === 0, `godhand-viewer (offline) stopped cleanly (${vr.code})`);
+
+  // The other models: two 6-body hands (the bench's --hand-model / --left-hand-model), and one
+  // hand of a single body (a hand-made file: no Leap retargeting drives the 1-body tool).
+  const csv6File = path.join(TMP, 'bench6.csv');
+  const r6 = spawnSync(path.join(BIN, 'godhand-bench'), ['--recording', REC2, '--quiet', '--poses', csv6File,
+    '--hand-model', path.join(DEPLOY, 'models', 'hand6_right.pbtxt'), '--left-hand-model', path.join(DEPLOY, 'models', 'hand6_left.pbtxt')],
+  { timeout: 120000, encoding: 'utf8' });
+  check(r6.status === 0, `godhand-bench with the 6-body hands ran (${r6.status} ${r6.stderr.trim()})`);
+  const one = path.join(TMP, 'one-body.csv');
+  fs.writeFileSync(one, 'frame,hand,body,shape,radius,half_length,hx,hy,hz,px,py,pz,qw,qx,qy,qz\n' +
+    [0, 1, 2].map((f) => `${f},tool,tool,capsule,0.01,0.05,0,0,0,${0.01 * f},0.1,0.3,0.70710678118654757,0,0.70710678118654757,0`).join('\n') + '\n');
+  for (const [file, hands, bodies] of [[csv6File, 2, 6], [one, 1, 1]]) {
+    const c2 = readCsv(file);
+    const v2 = await startViewer(['--poses', file]);
+    const p2 = await openPage(v2.url);
+    await p2.waitForFunction((n) => window.godhand && window.godhand.offline && Object.keys(window.godhand.drawn).length === n, hands, { timeout: 30000 });
+    await p2.evaluate(() => window.godhand.showFrame(1));
+    await p2.waitForFunction(() => Object.values(window.godhand.drawn).every((d) => d.frame === 1), null, { timeout: 10000 });
+    const drawn = Object.values(await p2.evaluate(() => window.godhand.drawn));
+    const errs = drawn.map((d) => poseError(d.poses, csvPoses(c2, 1, d.cluster)));
+    check(drawn.length === hands && drawn.every((d) => d.poses.length === bodies) && errs.every((e) => e.pos < 1e-9 && e.rot < 1e-12),
+      `${hands} hand(s) of ${bodies} bodies drawn at the file's poses (${path.basename(file)}: ${drawn.map((d) => d.cluster + ' ' + d.poses.length).join(', ')})`);
+    check(p2.errors.length === 0, `no page errors (${p2.errors.slice(0, 3).join(' | ')})`);
+    await p2.close();
+    await stop(v2.proc);
+  }
+  await browser.close();
 }
 
 // A raw WebSocket client over TCP (RFC 6455 by hand: node 20 has no WebSocket client), so that
