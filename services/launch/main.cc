@@ -31,6 +31,7 @@
 #include "common/watchdog.h"
 #include "launch/report.h"
 #include "common/lab_config.h"
+#include "common/render.h"
 #include "common/signals.h"
 #include "common/supervisor.h"
 #include "dds/dds.h"
@@ -242,6 +243,10 @@ int main(int argc, char** argv) {
            "(lock-step: none lost, none stale), every service running at the end, the late joiner served, every drill done");
   cli.flag("--quiet", &quiet, "no per-second lines");
   cli.epilog("exit status: 0 ok; 1 the run or its --check failed; 2 bad configuration; 3 services did not come up.");
+  // --render systemd OUTDIR: two values, so taken out of argv before the parser (listed for --help)
+  std::string render_kind, render_dir, render_error, render_help;
+  cli.option("--render", &render_help, "systemd OUTDIR", "write per-host systemd units, environment files and profiles of the lab to OUTDIR, start nothing");
+  if (!takeRenderArgs(argc, argv, &render_kind, &render_dir, &render_error)) cli.fail(render_error);
   cli.parse(argc, argv);
   if (frames < 0) cli.fail("--frames must be >= 0");
   if (!(speed >= 0.01 && speed <= 1000.0)) cli.fail("--speed must be in [0.01, 1000]");
@@ -276,6 +281,7 @@ int main(int argc, char** argv) {
     cli.fail(e.what());
   }
   if (domain >= 0) lab.domain_id = domain;
+  if (!render_kind.empty()) return renderCommand(lab, render_kind, render_dir, bin_dir + "/godhand-launch", std::string(GODHAND_DEPLOY_DIR) + "/dds");
   if (!recording.empty()) lab.recording = recording;
   if (!source_uri.empty()) lab.recording = source_uri;
   if (!scene_file.empty()) lab.scene = scene_file;
