@@ -20,8 +20,10 @@ with a positive control (a datagram addressed outside the lab moves that counter
 Everything runs inside a fresh user + network namespace (unshare -rnm), itself without any
 route out: nothing can reach a real network. The test skips (77) where that cannot be made.
 
-usage: multihost.py BIN_DIR DEPLOY_DIR DOMAIN RECORDING [--security PKI_SCRIPT]
+usage: multihost.py BIN_DIR DEPLOY_DIR DOMAIN RECORDING
        (re-executes itself inside the namespace as: multihost.py --inner ...)
+       multihost.py --render-check BIN_DIR DEPLOY_DIR: godhand-launch --render systemd on the
+       shipped two-machine lab, every unit through `systemd-analyze verify` (with controls)
 """
 import json
 import os
@@ -404,7 +406,53 @@ def outer(args, script):
     sys.exit(rc)
 
 
+def render_check(bin_dir, deploy):
+    """`godhand-launch --render systemd OUTDIR` on the shipped two-machine lab: every host's files
+    are written, and every unit passes `systemd-analyze verify` without a warning (when that
+    tool is there; controls: a unit with a missing program fails, an unknown key warns)."""
+    tmp = tempfile.mkdtemp(prefix="godhand-render-")
+    try:
+        out = os.path.join(tmp, "out")
+        r = run([os.path.join(bin_dir, "godhand-launch"), "--lab", os.path.join(deploy, "lab", "two-machines.pbtxt"),
+                 "--render", "systemd", out], 60)
+        print(r.stdout + r.stderr)
+        check(r.returncode == 0, f"godhand-launch --render systemd exited {r.returncode}")
+        units = []
+        for host in ("tracker-pc", "compute-pc"):
+            for f in ("godhand-two-machines.service", "godhand-two-machines.env", "lab.pbtxt", "INSTALL",
+                      "profiles-tracker-pc.xml", "profiles-compute-pc.xml"):
+                check(os.path.isfile(os.path.join(out, host, f)), f"{host}/{f} written")
+            units += [os.path.join(out, host, f) for f in sorted(os.listdir(os.path.join(out, host))) if f.endswith(".service")]
+        check(os.path.isfile(os.path.join(out, "compute-pc", "godhand-two-machines-discovery.service")),
+              "the discovery server's unit on its host")
+        r = run([os.path.join(bin_dir, "godhand-launch"), "--lab", os.path.join(deploy, "lab", "local.pbtxt"), "--render", "systemd",
+                 os.path.join(tmp, "local")], 60)
+        check(r.returncode == 2 and "names no hosts" in r.stderr and len(r.stderr.strip().splitlines()) == 1,
+              f"a lab without hosts: exit 2, one line ({r.returncode}, {r.stderr.strip()})")
+        if not shutil.which("systemd-analyze"):
+            print("note: systemd-analyze not found: units not verified")
+            return
+        for u in units:
+            v = run(["systemd-analyze", "verify", u], 60)
+            msg = (v.stdout + v.stderr).strip()
+            check(v.returncode == 0 and not msg, f"systemd-analyze verify {os.path.relpath(u, out)}: exit {v.returncode} {msg}")
+        bad = os.path.join(tmp, "bad-missing.service")
+        open(bad, "w").write(re.sub(r"ExecStart=\S+", "ExecStart=/nonexistent/godhand-launch", open(units[0]).read()))
+        v = run(["systemd-analyze", "verify", bad], 60)
+        check(v.returncode != 0, f"control: a unit whose program is missing fails verify (exit {v.returncode})")
+        bad = os.path.join(tmp, "bad-key.service")
+        open(bad, "w").write(open(units[0]).read().replace("[Service]\n", "[Service]\nNoSuchKey=1\n"))
+        v = run(["systemd-analyze", "verify", bad], 60)
+        check("NoSuchKey" in v.stdout + v.stderr, "control: an unknown key is reported by verify")
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
 def main():
+    if len(sys.argv) > 1 and sys.argv[1] == "--render-check":
+        render_check(os.path.abspath(sys.argv[2]), os.path.abspath(sys.argv[3]))
+        print("PASSED" if not failures else f"{len(failures)} check(s) FAILED")
+        sys.exit(0 if not failures else 1)
     if len(sys.argv) > 1 and sys.argv[1] == "--inner":
         bin_dir, deploy, domain, recording, tmp = sys.argv[2:7]
         inner(bin_dir, deploy, int(domain), recording, tmp)
