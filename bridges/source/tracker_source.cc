@@ -19,6 +19,7 @@
 
 #include "dtrack/dtrack.h"
 #include "skeleton/jsonl.h"
+#include "synthetic/synthetic.h"
 #include "source/recording.h"
 
 namespace godhand::bridges {
@@ -219,6 +220,23 @@ std::unique_ptr<FrameReplay> jsonlReplay(const std::string& path, const SourceOp
 std::unique_ptr<FrameReplay> openReplay(const std::string& path, const std::string& format, const SourceOptions& o) {
   if (format == "leap") return leapReplay(path, o);
   if (format == "openxr" || format == "mediapipe") return jsonlReplay(path, o);
+  if (format == "synthetic") {
+    synthetic::Generated g;
+    try {
+      g = synthetic::generate(synthetic::parseScript(readFile(path), path), o.X_WT);
+    } catch (const synthetic::ScriptError& e) {
+      throw SourceError(e.what());
+    }
+    std::uint64_t dropped = 0;
+    for (TrackerFrame& f : g.frames) dropped += applyHandSides(&f, o);
+    SourceStats s;
+    s.received = g.samples;
+    s.rejected = g.rejected_not_finite + dropped;
+    s.detail = "synthetic hand samples " + std::to_string(g.samples) + " (rejected: NaN/Inf " + std::to_string(g.rejected_not_finite) + ")";
+    if (g.rejected_not_finite) s.by_reason.emplace_back("NaN/Inf", g.rejected_not_finite);
+    if (dropped) s.by_reason.emplace_back("hand not in the hand map", dropped);
+    return std::make_unique<FrameReplay>("synthetic", path, std::move(g.frames), std::move(s), o.frames);
+  }
   if (format == "dtrack") return dtrackReplay(path, dtrackFileRecords(path), o, "dtrack replay");
   if (format == "raw") {
     std::string kind;
@@ -348,6 +366,7 @@ std::string detectFormat(const std::string& path) {
     return "leap";
   }
   if (head.compare(0, 11, "godhand-raw") == 0) return "raw";
+  if (head.compare(i, 17, "godhand-synthetic") == 0) return "synthetic";
   if (head.compare(0, 3, "fr ") == 0) return "dtrack";
   return "";
 }
@@ -422,7 +441,7 @@ std::unique_ptr<TrackerSource> openSource(const std::string& spec, const SourceO
   if (spec.rfind("raw:", 0) == 0) return openReplay(spec.substr(4), "raw", o);
   const std::string format = detectFormat(spec);
   if (format.empty())
-    throw SourceError(spec + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...), OpenXR / MediaPipe JSON Lines or a godhand raw recording)");
+    throw SourceError(spec + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...), OpenXR / MediaPipe JSON Lines, a synthetic script or a godhand raw recording)");
   return openReplay(spec, format, o);
 }
 
@@ -445,7 +464,7 @@ LoadedRecording loadRecording(const std::string& path, const SourceOptions& opti
   if (path.find("://") != std::string::npos) throw SourceError(path + ": a live source, not a recording file");
   const std::string format = detectFormat(path);
   if (format.empty())
-    throw SourceError(path + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...), OpenXR / MediaPipe JSON Lines or a godhand raw recording)");
+    throw SourceError(path + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...), OpenXR / MediaPipe JSON Lines, a synthetic script or a godhand raw recording)");
   SourceOptions o = options;
   o.frames = 0;
   const std::unique_ptr<FrameReplay> r = openReplay(path, format, o);

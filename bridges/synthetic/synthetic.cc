@@ -1,0 +1,218 @@
+#include "synthetic/synthetic.h"
+
+#include <array>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "skeleton/skeleton.h"
+
+namespace godhand::synthetic {
+
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+[[noreturn]] void fail(const std::string& name, int line, const std::string& why) {
+  throw ScriptError(name + ":" + std::to_string(line) + ": " + why);
+}
+
+}  // namespace
+
+std::vector<Vec3> handLandmarks(bool right, const Vec3& palm, double curl) {
+  const double s = right ? 1.0 : -1.0;  // mirror x for a left hand (thumb on +x)
+  std::vector<Vec3> p(21);
+  p[0] = palm + Vec3(0, -0.047, 0);  // the palm centre is the midpoint of wrist and middle MCP
+  // Thumb: CMC, then three bones toward the index side, flexing toward the palm (−z).
+  const Vec3 cmc = palm + Vec3(s * -0.025, -0.030, -0.010);
+  const Vec3 d0 = Vec3(s * -0.45, 0.89, 0.0).normalized();
+  const double tl[3] = {0.040, 0.032, 0.026}, ta[3] = {20.0, 50.0, 80.0};
+  p[1] = cmc;
+  for (int k = 0; k < 3; ++k) {
+    const double a = curl * ta[k] * kDeg;
+    p[static_cast<size_t>(2 + k)] = p[static_cast<size_t>(1 + k)] + tl[k] * (std::cos(a) * d0 + std::sin(a) * Vec3(0, 0, -1));
+  }
+  const double mx[4] = {-0.022, 0.0, 0.020, 0.038}, my[4] = {0.045, 0.047, 0.043, 0.037};
+  const double len[4][3] = {{0.040, 0.024, 0.020}, {0.044, 0.028, 0.022}, {0.041, 0.027, 0.021}, {0.033, 0.019, 0.018}};
+  const double ang[3] = {70.0, 160.0, 220.0};
+  for (int f = 0; f < 4; ++f) {
+    const size_t b = static_cast<size_t>(5 + 4 * f);
+    p[b] = palm + Vec3(s * mx[f], my[f], 0.0);
+    for (int k = 0; k < 3; ++k) {
+      const double a = curl * ang[k] * kDeg;
+      p[b + static_cast<size_t>(k) + 1] = p[b + static_cast<size_t>(k)] + len[f][k] * Vec3(0, std::cos(a), -std::sin(a));
+    }
+  }
+  return p;
+}
+
+Script parseScript(const std::string& text, const std::string& name) {
+  Script sc;
+  std::istringstream in(text);
+  std::string line;
+  int n = 0;
+  bool header = false, moved = false;
+  while (std::getline(in, line)) {
+    ++n;
+    const size_t hash = line.find('#');
+    if (hash != std::string::npos) line.resize(hash);
+    std::istringstream ls(line);
+    std::vector<std::string> tok;
+    for (std::string t; ls >> t;) tok.push_back(t);
+    if (tok.empty()) continue;
+    if (!header) {
+      if (tok.size() != 2 || tok[0] != "godhand-synthetic" || tok[1] != "1") fail(name, n, "first line must be 'godhand-synthetic 1'");
+      header = true;
+      continue;
+    }
+    auto num = [&](size_t i) {
+      if (i >= tok.size()) fail(name, n, "'" + tok[0] + "': missing value");
+      char* end = nullptr;
+      const double v = std::strtod(tok[i].c_str(), &end);
+      if (*end != '\0' || !std::isfinite(v)) fail(name, n, "'" + tok[i] + "' is not a finite number");
+      return v;
+    };
+    auto side = [&](size_t i) {
+      if (i >= tok.size()) fail(name, n, "'" + tok[0] + "': missing side");
+      if (tok[i] == "right") return 1;
+      if (tok[i] == "left") return 0;
+      fail(name, n, "side must be right or left, not '" + tok[i] + "'");
+    };
+    auto arity = [&](size_t k) {
+      if (tok.size() != k) fail(name, n, "'" + tok[0] + "' takes " + std::to_string(k - 1) + " values");
+    };
+    auto seconds = [&](size_t i) {
+      const double v = num(i);
+      if (!(v >= 0.0 && v <= 3600.0)) fail(name, n, "duration must be in [0, 3600] s");
+      return v;
+    };
+    auto position = [&](size_t i) {
+      const Vec3 p(num(i), num(i + 1), num(i + 2));
+      if (p.cwiseAbs().maxCoeff() > 1000.0) fail(name, n, "position beyond 1 km");
+      return p;
+    };
+    Command c;
+    c.op = tok[0];
+    c.line = n;
+    if (c.op == "rate") {
+      arity(2);
+      if (moved) fail(name, n, "rate must come before any motion");
+      sc.rate_hz = num(1);
+      if (!(sc.rate_hz >= 1.0 && sc.rate_hz <= 10000.0)) fail(name, n, "rate must be in [1, 10000] Hz");
+      continue;
+    } else if (c.op == "start" || c.op == "teleport") {
+      arity(5);
+      c.side = side(1);
+      c.p = position(2);
+    } else if (c.op == "move") {
+      arity(6);
+      c.side = side(1);
+      c.seconds = seconds(2);
+      c.p = position(3);
+    } else if (c.op == "curl") {
+      arity(4);
+      c.side = side(1);
+      c.seconds = seconds(2);
+      c.value = num(3);
+      if (!(c.value >= 0.0 && c.value <= 1.0)) fail(name, n, "curl fraction must be in [0, 1]");
+    } else if (c.op == "hold") {
+      arity(2);
+      c.seconds = seconds(1);
+    } else if (c.op == "lost") {
+      arity(3);
+      c.side = side(1);
+      c.seconds = seconds(2);
+    } else if (c.op == "nan") {
+      arity(3);
+      c.side = side(1);
+      c.value = num(2);
+      if (!(c.value >= 1 && c.value <= 1e6) || std::floor(c.value) != c.value) fail(name, n, "nan takes a frame count 1..1000000");
+    } else {
+      fail(name, n, "unknown command '" + c.op + "'");
+    }
+    moved = true;
+    sc.commands.push_back(c);
+  }
+  if (!header) fail(name, n, "empty script (first line must be 'godhand-synthetic 1')");
+  bool started[2] = {false, false};
+  for (const Command& c : sc.commands) {
+    if (c.op == "start") started[c.side] = true;
+    else if (c.side >= 0 && !started[c.side]) fail(name, c.line, "'" + c.op + "' of the " + (c.side ? "right" : "left") + " hand before its 'start'");
+  }
+  if (!started[0] && !started[1]) fail(name, n, "no hand: add 'start right X Y Z'");
+  return sc;
+}
+
+Generated generate(const Script& sc, const Pose& X_WT) {
+  struct HandState {
+    bool exists = false;
+    Vec3 p = Vec3::Zero();
+    double curl = 0.0;
+    int lost_frames = 0;
+    int nan_frames = 0;
+  };
+  HandState h[2];
+  Generated g;
+  const double dt = 1.0 / sc.rate_hz;
+  std::int64_t k = 0;
+  auto emit = [&] {
+    leap::TrackerFrame f;
+    f.timestamp_us = static_cast<std::int64_t>(std::llround(static_cast<double>(k) * dt * 1e6));
+    f.frame_id = k;
+    ++k;
+    for (int s = 1; s >= 0; --s) {
+      HandState& st = h[s];
+      if (!st.exists) continue;
+      if (st.lost_frames > 0) {
+        --st.lost_frames;
+        continue;
+      }
+      const std::vector<Vec3> lm = handLandmarks(s == 1, st.p, st.curl);
+      std::array<Vec3, skeleton::kLandmarks> a;
+      for (size_t i = 0; i < a.size(); ++i) a[i] = lm[i];
+      if (st.nan_frames > 0) {
+        --st.nan_frames;
+        a[8].x() = std::numeric_limits<double>::quiet_NaN();
+      }
+      ++g.samples;
+      leap::TrackedHand th;
+      skeleton::Reject why;
+      if (skeleton::handFromLandmarks(a, s == 1, 1.0, s, X_WT, &th, &why)) f.hands.push_back(th);
+      else ++g.rejected_not_finite;
+    }
+    g.frames.push_back(std::move(f));
+  };
+  auto framesFor = [&](double seconds) { return static_cast<int>(std::llround(seconds * sc.rate_hz)); };
+  for (const Command& c : sc.commands) {
+    HandState* st = c.side >= 0 ? &h[c.side] : nullptr;
+    if (c.op == "start") {
+      st->exists = true;
+      st->p = c.p;
+      st->curl = 0.0;
+    } else if (c.op == "teleport") {
+      st->p = c.p;
+    } else if (c.op == "nan") {
+      st->nan_frames = static_cast<int>(c.value);
+    } else if (c.op == "move" || c.op == "curl") {
+      const int n = std::max(1, framesFor(c.seconds));
+      const Vec3 p0 = st->p;
+      const double c0 = st->curl;
+      for (int i = 1; i <= n; ++i) {
+        const double u = static_cast<double>(i) / n;
+        if (c.op == "move") st->p = p0 + u * (c.p - p0);
+        else st->curl = c0 + u * (c.value - c0);
+        emit();
+      }
+    } else if (c.op == "hold") {
+      for (int i = framesFor(c.seconds); i > 0; --i) emit();
+    } else if (c.op == "lost") {
+      const int n = framesFor(c.seconds);
+      st->lost_frames = n;
+      for (int i = 0; i < n; ++i) emit();
+    }
+  }
+  if (g.frames.empty()) emit();
+  return g;
+}
+
+}  // namespace godhand::synthetic
