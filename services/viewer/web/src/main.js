@@ -258,6 +258,7 @@ const chart = document.getElementById('chart').getContext('2d');
 const history = [];  // per HandState (hand 0's, plus the scene step): stage times in us
 let sceneStepUs = 0;
 const latencies = [];     // recv -> drawn (ms), newest last
+const arrivals = [];      // recv -> arrived in the page (ms): the viewer's and the socket's share
 const e2e = [];           // tracker sample -> drawn (ms)
 const services = new Map();
 let viewerStats = null;
@@ -295,6 +296,7 @@ function updateHud() {
   rows.push(['render', `${fmt(renderRate.hz(), 0)} fps`]);
   rows.push(['feed', feed ? `${fmt(feed.received, 0)} msgs` : 'offline file']);
   if (latencies.length) {
+    rows.push(['viewer → page', `${fmt(median(arrivals))} ms (p99 ${fmt(pct(arrivals, 0.99))})`]);
     rows.push(['viewer → drawn', `${fmt(median(latencies))} ms (p99 ${fmt(pct(latencies, 0.99))})`]);
     rows.push(['tracker → drawn', `${fmt(median(e2e))} ms (p99 ${fmt(pct(e2e, 0.99))})`]);
   }
@@ -333,12 +335,14 @@ const godhand = {
   received: { hand_state: 0, hand_target: 0, scene_state: 0, contact_forces: 0, service_status: 0, scene_description: 0 },
   renders: 0,
   latenciesMs: latencies,
+  arrivalMs: arrivals,
   endToEndMs: e2e,
   // What was drawn in the last rendered frame, per hand: frame, stale/held, and each God body's
   // world pose read back from three.js ([px, py, pz, qw, qx, qy, qz]).
   drawn: {},
   hands: () => [...hands.keys()],
   offline: null,
+  freeze: false,
 };
 window.godhand = godhand;
 
@@ -397,8 +401,10 @@ function frameCamera() {
 function onMessage(topic, m) {
   const kind = topic.replace('godhand/', '');
   if (godhand.received[kind] !== undefined) godhand.received[kind]++;
+  if (godhand.freeze) return;  // tests: hold the picture still (messages counted, not drawn)
   switch (kind) {
     case 'hand_state': {
+      if (m.recv_ns) { arrivals.push((nowNs() - m.recv_ns) / 1e6); if (arrivals.length > 2000) arrivals.shift(); }
       const h = hand(m.hand, m.cluster);
       h.setState(m);
       frameCamera();
