@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "dtrack/dtrack.h"
+#include "skeleton/aria.h"
 #include "skeleton/jsonl.h"
 #include "synthetic/synthetic.h"
 #include "source/recording.h"
@@ -195,10 +196,10 @@ std::vector<RawRecord> dtrackFileRecords(const std::string& path) {
   return out;
 }
 
-std::unique_ptr<FrameReplay> jsonlReplay(const std::string& path, const SourceOptions& o) {
+std::unique_ptr<FrameReplay> jsonlReplay(const std::string& path, const SourceOptions& o, bool aria) {
   skeleton::JsonlRecording r;
   try {
-    r = skeleton::readJsonl(readFile(path), path, o.X_WT);
+    r = aria ? skeleton::readAriaCsv(readFile(path), path, o.X_WT) : skeleton::readJsonl(readFile(path), path, o.X_WT);
   } catch (const skeleton::JsonlError& e) {
     throw SourceError(e.what());
   }
@@ -219,7 +220,7 @@ std::unique_ptr<FrameReplay> jsonlReplay(const std::string& path, const SourceOp
 
 std::unique_ptr<FrameReplay> openReplay(const std::string& path, const std::string& format, const SourceOptions& o) {
   if (format == "leap") return leapReplay(path, o);
-  if (format == "openxr" || format == "mediapipe") return jsonlReplay(path, o);
+  if (format == "openxr" || format == "mediapipe" || format == "aria") return jsonlReplay(path, o, format == "aria");
   if (format == "synthetic") {
     synthetic::Generated g;
     try {
@@ -366,6 +367,7 @@ std::string detectFormat(const std::string& path) {
     return "leap";
   }
   if (head.compare(0, 11, "godhand-raw") == 0) return "raw";
+  if (skeleton::isAriaHeader(head)) return "aria";
   if (head.compare(i, 17, "godhand-synthetic") == 0) return "synthetic";
   if (head.compare(0, 3, "fr ") == 0) return "dtrack";
   return "";
@@ -441,7 +443,7 @@ std::unique_ptr<TrackerSource> openSource(const std::string& spec, const SourceO
   if (spec.rfind("raw:", 0) == 0) return openReplay(spec.substr(4), "raw", o);
   const std::string format = detectFormat(spec);
   if (format.empty())
-    throw SourceError(spec + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...), OpenXR / MediaPipe JSON Lines, a synthetic script or a godhand raw recording)");
+    throw SourceError(spec + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...), OpenXR / MediaPipe JSON Lines, Aria MPS hand tracking CSV, a synthetic script or a godhand raw recording)");
   return openReplay(spec, format, o);
 }
 
@@ -464,7 +466,7 @@ LoadedRecording loadRecording(const std::string& path, const SourceOptions& opti
   if (path.find("://") != std::string::npos) throw SourceError(path + ": a live source, not a recording file");
   const std::string format = detectFormat(path);
   if (format.empty())
-    throw SourceError(path + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...), OpenXR / MediaPipe JSON Lines, a synthetic script or a godhand raw recording)");
+    throw SourceError(path + ": unknown recording format (expected Leap JSON, DTrack datagrams (fr ...), OpenXR / MediaPipe JSON Lines, Aria MPS hand tracking CSV, a synthetic script or a godhand raw recording)");
   SourceOptions o = options;
   o.frames = 0;
   const std::unique_ptr<FrameReplay> r = openReplay(path, format, o);

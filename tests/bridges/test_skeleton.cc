@@ -222,3 +222,59 @@ TEST(Skeleton, OpenXrAndMediaPipeRecordingsGiveTheLeapHands) {
   EXPECT_THROW(bridges::loadRecording(badh), bridges::SourceError);
   std::remove(badh.c_str());
 }
+
+// Aria MPS hand tracking CSV (tests/data/aria/pinch_head_v2.csv, written by make_aria.py from
+// the first 8 frames of pinch.json in the 155-column v2 layout): the Leap hand comes back
+// (joints printed to 1e-9 m; Aria has no thumb CMC, so thumb.1 is approximate), left untracked.
+TEST(Skeleton, AriaCsvGivesTheLeapHand) {
+  const std::string path = std::string(GODHAND_TEST_DATA_DIR) + "/aria/pinch_head_v2.csv";
+  EXPECT_EQ(bridges::detectFormat(path), "aria");
+  const bridges::LoadedRecording r = bridges::loadRecording(path);
+  const leap::Recording l = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/pinch.json");
+  ASSERT_EQ(r.frames.size(), 8u);
+  EXPECT_TRUE(r.has_right);
+  EXPECT_FALSE(r.has_left);
+  double joint = 0.0;
+  for (size_t i = 0; i < 8; ++i) {
+    ASSERT_EQ(r.frames[i].hands.size(), 1u);
+    EXPECT_EQ(r.frames[i].timestamp_us, l.frames()[i].timestamp_us);
+    const leap::TrackedHand& a = r.frames[i].hands[0];
+    const leap::TrackedHand& b = l.frames()[i].hands[0];
+    EXPECT_NEAR((a.X_W_palm.p - b.X_W_palm.p).norm(), 0.0, 2e-9);
+    for (int fi = 0; fi < 5; ++fi)
+      for (int k = fi == 0 ? 1 : 0; k < 4; ++k)
+        joint = std::max(joint, (a.joints_W[static_cast<size_t>(fi)][static_cast<size_t>(k)] - b.joints_W[static_cast<size_t>(fi)][static_cast<size_t>(k)]).norm());
+  }
+  std::printf("[figure] aria_vs_leap.joint_position_max_m = %.3g (thumb CMC excluded)\n", joint);
+  EXPECT_LT(joint, 2e-9);
+  // Bad rows, counted: NaN, a wrong column count, a time going back; confidence −1 is untracked.
+  std::ifstream in(path);
+  std::string header, row;
+  std::getline(in, header);
+  std::getline(in, row);
+  auto field = [](std::string line, size_t idx, const std::string& v) {
+    size_t start = 0;
+    for (size_t k = 0; k < idx; ++k) start = line.find(',', start) + 1;
+    const size_t end = line.find(',', start);
+    return line.replace(start, end - start, v);
+  };
+  const size_t right_conf = 1 + 1 + 63;
+  const std::string p2 = tmpFile("aria.csv");
+  {
+    std::ofstream o(p2);
+    o << header << "\n" << row << "\n";
+    o << field(field(row, 0, "12281700000"), right_conf + 5, "nan") << "\n";
+    o << field(row, 0, "12281690000") << "\n";                    // back in time
+    o << row.substr(0, row.rfind(',')) << "\n";                  // a column short
+    o << field(field(row, 0, "12281710000"), right_conf, "-1") << "\n";  // not tracked
+  }
+  const bridges::LoadedRecording bad = bridges::loadRecording(p2);
+  EXPECT_EQ(bad.frames.size(), 3u);
+  EXPECT_NE(bad.rejections.find("hand: NaN/Inf 1"), std::string::npos) << bad.rejections;
+  EXPECT_NE(bad.rejections.find("line: parse error 1"), std::string::npos) << bad.rejections;
+  EXPECT_NE(bad.rejections.find("line: stale/duplicate time 1"), std::string::npos) << bad.rejections;
+  EXPECT_TRUE(bad.frames.back().hands.empty());
+  { std::ofstream(p2) << "tracking_timestamp_us,left_tracking_confidence\n1,0\n"; }
+  EXPECT_THROW(bridges::loadRecording(p2), bridges::SourceError);
+  std::remove(p2.c_str());
+}
