@@ -423,7 +423,7 @@ function onMessage(topic, m) {
     case 'scene_state': sceneStepUs = m.step_us || 0; applySceneState(m); break;
     case 'contact_forces': setContacts(m.contacts); break;
     case 'service_status': services.set(m.service, m); break;
-    case 'viewer_stats': viewerStats = m; break;
+    case 'viewer_stats': viewerStats = m; godhand.viewerStats = m; break;
     default: break;
   }
 }
@@ -445,11 +445,14 @@ function startLive() {
 // (down/up) or Shift-drag in the view plane. The ghost shows the target, the solid hand where the
 // method lets it go.
 const synthetic = {
-  hand: null, offset: new THREE.Vector3(), keys: new Set(), lastSent: 0, sentOffset: null, sent: 0,
+  hand: null, offset: new THREE.Vector3(), keys: new Set(), lastSent: 0, sentOffset: null, sent: 0, lastStep: 0,
   owns() { return false; },
   step() {
     if (this.hand === null || !feed) return;
-    const speed = 0.0015, k = this.keys;
+    const now = performance.now();
+    const dt = this.lastStep ? Math.min(0.1, (now - this.lastStep) / 1000) : 0;
+    this.lastStep = now;
+    const speed = 0.06 * dt, k = this.keys;  // 6 cm/s, whatever the frame rate
     if (k.has('w')) this.offset.y += speed; if (k.has('s')) this.offset.y -= speed;
     if (k.has('d')) this.offset.x += speed; if (k.has('a')) this.offset.x -= speed;
     if (k.has('e')) this.offset.z += speed; if (k.has('q')) this.offset.z -= speed;
