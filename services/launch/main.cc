@@ -220,6 +220,8 @@ int main(int argc, char** argv) {
   cli.option("--recording", &recording, "FILE", "tracker recording (default: the lab's)");
   cli.option("--source", &source_uri, "URI", "tracker source for the ingest (godhand-ingest --source), instead of the lab's recording");
   cli.option("--duration", &duration, "S", "passed to the ingest: a live source runs S seconds (0: the ingest's default)");
+  double live_rate = 0.0;
+  cli.option("--frame-rate", &live_rate, "HZ", "the source's frame rate (default: the recording's; a live source: the lab recording's)");
   cli.option("--scene", &scene_file, "FILE", "scene file (default: the lab's)");
   cli.option("--frames", &frames, "N", "replay only the first N frames (0: all)");
   cli.option("--json", &json_out, "OUT", "write the report (godhand-bench's format plus latency, delivery, ...) to OUT");
@@ -256,6 +258,7 @@ int main(int argc, char** argv) {
   if (!(deadline >= 0.0 && deadline <= 3600.0)) cli.fail("--deadline must be in [0, 3600] s");
   if (!(loss_budget >= 0.0 && loss_budget <= 1.0)) cli.fail("--loss-budget must be in [0, 1]");
   if (!(duration >= 0.0 && duration <= 86400.0)) cli.fail("--duration must be in [0, 86400] s");
+  if (!(live_rate >= 0.0 && live_rate < 10000.0)) cli.fail("--frame-rate must be in (0, 10000) Hz");
   if (solver != "exact" && solver != "pgs") cli.fail("--solver must be exact or pgs");
   if (physics_hz < 10 || physics_hz > 100000) cli.fail("--physics-hz must be in [10, 100000]");
   if (domain < -1 || domain > 232) cli.fail("--domain must be in 0..232");
@@ -283,6 +286,7 @@ int main(int argc, char** argv) {
   if (domain >= 0) lab.domain_id = domain;
   if (!render_kind.empty()) return renderCommand(lab, render_kind, render_dir, bin_dir + "/godhand-launch", std::string(GODHAND_DEPLOY_DIR) + "/dds");
   if (!recording.empty()) lab.recording = recording;
+  const std::string lab_recording = lab.recording;  // the lab's own (before --recording / --source)
   if (!source_uri.empty()) lab.recording = source_uri;
   if (!scene_file.empty()) lab.scene = scene_file;
   if (lab.recording.empty()) cli.fail("no recording: give --recording or --source, or set one in " + lab.file);
@@ -301,9 +305,17 @@ int main(int argc, char** argv) {
   std::int64_t n_frames = 0;  // < 0: a live source (frames expected = frames published)
   Scene scene;
   try {
-    auto src = bridges::openSource(lab.recording, frames);
-    rate = src->nominalRate();
-    n_frames = src->remaining();
+    if (source_uri.find("://") != std::string::npos) {
+      // A live network source (dtrack://HOST:PORT): the ingest alone opens it (the launcher must
+      // not bind its port); its rate is --frame-rate, else the lab recording's.
+      n_frames = -1;
+      rate = live_rate > 0 ? live_rate : (lab_recording.empty() ? 0.0 : bridges::openSource(lab_recording)->nominalRate());
+      if (!(rate > 0)) cli.fail("--source " + source_uri + ": give --frame-rate HZ (the lab names no recording)");
+    } else {
+      auto src = bridges::openSource(lab.recording, frames);
+      rate = live_rate > 0 ? live_rate : src->nominalRate();
+      n_frames = src->remaining();
+    }
     scene = loadScene(lab.scene);
   } catch (const std::exception& e) {
     cli.fail(e.what());

@@ -378,7 +378,7 @@ def case_rejects():
         (["godhand-scene", "--lab", lab, "--scene", "/nonexistent/scene.pbtxt"], "/nonexistent/scene.pbtxt"),
         (["godhand-resolver", "--lab", lab, "--profiles", bad_profile], "bad.xml"),
         (["godhand-resolver", "--lab", lab, "--profiles", "/nonexistent/p.xml"], "/nonexistent/p.xml"),
-        (["godhand-ingest", "--lab", lab, "--source", "dtrack:5000"], "unknown tracker source"),
+        (["godhand-ingest", "--lab", lab, "--source", "dtrack:5000"], "5000"),
         (["godhand-ingest", "--lab", lab, "--source", "/nonexistent/rec.json"], "/nonexistent/rec.json"),
         (["godhand-launch", "--lab", lab, "--kill", "scene"], "--kill"),
         (["godhand-launch", "--lab", lab, "--kill", "@2"], "--kill '@2'"),
