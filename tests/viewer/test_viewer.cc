@@ -4,8 +4,10 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <nlohmann/json.hpp>
 
+#include "viewer/encode.h"
 #include "viewer/feed.h"
 #include "viewer/offline.h"
 #include "viewer/synthetic.h"
@@ -289,4 +291,63 @@ TEST(ViewerSynthetic, TargetIsTheModelAtRestAtTheCommandedFrame) {
     EXPECT_EQ(t.targets()[b].q()[0], rest[b].q.w());
     EXPECT_TRUE(t.driven()[b]);
   }
+}
+
+TEST(ViewerEncode, HandStateCarriesPosesShapesFlagsAndNullsForNonFinite) {
+  msg::HandState s;
+  s.hand(1);
+  s.cluster("left");
+  s.stamp().frame(42);
+  s.stamp().source_time_ns(1000);
+  s.stale(true);
+  s.held(false);
+  s.poses().resize(2);
+  s.poses()[0].p()[0] = 0.25;
+  s.poses()[0].q()[0] = 1.0;
+  s.poses()[1].p()[1] = std::numeric_limits<double>::quiet_NaN();
+  s.shapes().resize(2);
+  s.shapes()[0].type(0);
+  s.shapes()[0].radius(0.01);
+  s.shapes()[0].half_length(0.02);
+  s.shapes()[1].type(2);
+  s.shapes()[1].half_extents()[2] = 0.013;
+  s.solver_times().solve_us(12.5);
+  const json j = handStateJson(s, 5000, 0.0007);
+  const json round = json::parse(j.dump());  // valid JSON even with the NaN
+  EXPECT_EQ(round["hand"], 1);
+  EXPECT_EQ(round["cluster"], "left");
+  EXPECT_EQ(round["stamp"]["frame"], 42);
+  EXPECT_EQ(round["recv_ns"], 5000);
+  EXPECT_EQ(round["stale"], true);
+  EXPECT_EQ(round["held"], false);
+  EXPECT_DOUBLE_EQ(round["penetration_m"].get<double>(), 0.0007);
+  EXPECT_EQ(round["poses"][0], json::array({0.25, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0}));
+  EXPECT_TRUE(round["poses"][1][1].is_null());
+  EXPECT_EQ(round["shapes"][0], json::array({0, 0.01, 0.02, 0.0, 0.0, 0.0}));
+  EXPECT_EQ(round["shapes"][1][0], 2);
+  EXPECT_DOUBLE_EQ(round["shapes"][1][5].get<double>(), 0.013);
+  EXPECT_DOUBLE_EQ(round["times_us"]["solve"].get<double>(), 12.5);
+  EXPECT_TRUE(handStateJson(s, 5000, -1.0)["penetration_m"].is_null());  // unknown
+}
+
+TEST(ViewerEncode, ContactsAndSceneState) {
+  msg::ContactForces f;
+  f.contacts().resize(1);
+  f.contacts()[0].object(3);
+  f.contacts()[0].body(7);
+  f.contacts()[0].n()[2] = 1.0;
+  f.contacts()[0].lambda(0.5);
+  const json c = contactForcesJson(f, 1);
+  EXPECT_EQ(c["contacts"][0]["object"], 3);
+  EXPECT_EQ(c["contacts"][0]["body"], 7);
+  EXPECT_EQ(c["contacts"][0]["n"], json::array({0.0, 0.0, 1.0}));
+  EXPECT_DOUBLE_EQ(c["contacts"][0]["lambda"].get<double>(), 0.5);
+  msg::SceneState ss;
+  ss.objects().resize(1);
+  ss.objects()[0].index(4);
+  ss.objects()[0].pose().q()[0] = 1.0;
+  ss.objects()[0].pose().p()[2] = 0.1;
+  const json j = sceneStateJson(ss, 2);
+  EXPECT_EQ(j["objects"][0]["index"], 4);
+  EXPECT_DOUBLE_EQ(j["objects"][0]["pose"][2].get<double>(), 0.1);
 }
