@@ -649,9 +649,10 @@ int main(int argc, char** argv) {
       if (scene_restarted) {  // how far the restarted scene moved the objects from where they were
         scene_restarted = false;
         double jump = 0;
-        // Objects at rest before the kill (< 1 cm/s) must be where they were (moving ones move on).
+        // Objects at rest before the kill and in the new scene's first state seen (< 1 cm/s) must
+        // be where they were (a jump back to the scene file's poses); moving ones move on.
         for (const ObjectMotion& o : snap.objects)
-          if (scene_last.count(o.index) && scene_last[o.index].v.norm() < 0.01)
+          if (scene_last.count(o.index) && scene_last[o.index].v.norm() < 0.01 && o.v.norm() < 0.01)
             jump = std::max(jump, (o.X.p - scene_last[o.index].X.p).norm());
         rep.scene_restart_jump_m = std::max(rep.scene_restart_jump_m, jump);
       }

@@ -74,7 +74,7 @@ struct RunReport {
   std::vector<std::string> watchdog_restarts;
   std::vector<DrillReport> drills;
   double stale_first_s = -1, stale_last_s = -1, resumed_s = -1, scene_back_s = -1;
-  double scene_restart_jump_m = 0;   ///< largest displacement of an object at rest between a dead scene's last state and its successor's first
+  double scene_restart_jump_m = 0;   ///< largest displacement of an object at rest in both a dead scene's last state and its successor's first seen
 
   // End of the run.
   std::size_t late_states = 0;

@@ -343,7 +343,9 @@ def case_profiles_qos():
 
 
 def case_kill(service, recording):
-    r, j = launch(["--recording", recording, "--kill", service + "@1.5", "--restart-delay", "0.5"])
+    # Half speed: the replay (7 s) outlasts a restart on a loaded machine (a scene was seen taking
+    # 3.5 s to come back with a load average of 10 on 2 cores).
+    r, j = launch(["--recording", recording, "--speed", "0.5", "--kill", service + "@1.5", "--restart-delay", "0.5"])
     check(r.returncode == 0, "godhand-launch with the fault drill exited 0")
     d = {k: (-1 if v is None else v) for k, v in j.get("fault_drill", {}).items()}
     check(d.get("killed_s", -1) >= 1.5 and d.get("restarted_s", -1) > d.get("killed_s", 0),
@@ -358,9 +360,10 @@ def case_kill(service, recording):
         log = os.path.join(TMP, "logs", "scene.log")
         text = open(log).read() if os.path.exists(log) else ""
         check("resumed" in text, "the restarted scene resumed its objects from the dead scene's last poses (not the scene file)")
-        # Reported, not asserted yet: objects at rest before the kill were seen up to 10 cm away in
-        # the restarted scene's first state (not understood; see the issue 13 report).
-        print(f"note: largest move of an object at rest across the restart: {d.get('scene_restart_jump_m')} m")
+        # Objects at rest in the dead scene's last state and in the new one's first state seen must
+        # not have moved (a jump back to the scene file). Only a check when an object had been moved
+        # before the kill and lies still: live timing decides, so it can pass without resuming.
+        check(d.get("scene_restart_jump_m", 1) <= 1e-3, f"objects at rest did not jump ({d.get('scene_restart_jump_m')} m)")
         check(j.get("penetration_unscored_states", 0) > 0, "penetration not scored against the dead scene's poses")
     common_checks(j)
 
