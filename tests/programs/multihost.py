@@ -2,8 +2,10 @@
 """A lab over three hosts, for real: three network namespaces (each with its own /dev/shm, so
 no shared memory crosses hosts) joined by veth pairs on a bridge, private test addresses
 10.231.0.1-3, UDP only between them, discovery through a Fast DDS Discovery Server
-(`fastdds discovery`) on the scene host. Each host runs `godhand-launch --host NAME` with the
-same lab file and its own profiles (godhand-multihost-ds.xml with that host's address):
+(`fastdds discovery`) on the scene host. The lab is deployed as a lab admin would: its one
+configuration rendered by `godhand-launch --render systemd` (per host: the lab file, identical
+everywhere, and every host's profiles: godhand-multihost-ds.xml with that host's address), and
+each host runs `godhand-launch --lab ITS-COPY --host NAME`:
 
     ingest   10.231.0.1   godhand-ingest (and the monitor that writes the report)
     solvers  10.231.0.2   godhand-solver per cluster
@@ -58,10 +60,10 @@ def sh(cmd):
     return r.stdout
 
 
-def write_lab(tmp, deploy, profiles_of, server=True):
-    """The lab file: three hosts with their addresses and profiles, the discovery server."""
+def write_lab(tmp, deploy, server=True):
+    """The lab's one configuration: three hosts with their addresses, the discovery server."""
     dep = os.path.abspath(deploy)
-    hosts = "".join(f'hosts {{ name: "{n}" address: "{a}" profiles: "{profiles_of[n]}" }}\n' for n, a in HOSTS)
+    hosts = "".join(f'hosts {{ name: "{n}" address: "{a}" }}\n' for n, a in HOSTS)
     text = f"""name: "multihost-test"
 domain_id: 0
 scene: "{dep}/scenes/default.pbtxt"
@@ -80,43 +82,33 @@ services {{ kind: SOLVER cluster: "left" host: "solvers" }}
     return path
 
 
-def peer_profiles(tmp, deploy, extra=None):
-    """Per-host profiles without a discovery server, from godhand-multihost.xml: the three hosts'
-    addresses as unicast initial peers, this host's address whitelisted."""
-    text = open(os.path.join(deploy, "dds", "godhand-multihost.xml")).read()
-    peers = "".join(f"<locator><udpv4><address>{a}</address></udpv4></locator>" for _, a in HOSTS)
-    text, n = re.subn(r"<initialPeersList>.*?</initialPeersList>", f"<initialPeersList>{peers}</initialPeersList>", text, flags=re.S)
-    assert n == 1
-    out = {}
-    for name, addr in HOSTS:
-        x, n = re.subn(r"(<maxInitialPeersRange>32</maxInitialPeersRange>)",
-                       rf"\1<interfaceWhiteList><address>{addr}</address></interfaceWhiteList>", text, count=1)
-        assert n == 1
+def render_lab(tmp, bin_dir, deploy, server=True, extra=None):
+    """Deploys the lab as a lab admin would: `godhand-launch --render systemd OUT` from the one lab
+    file, then each host uses its own rendered directory OUT/HOST/ (its lab.pbtxt, identical on
+    every host, pointed at that directory instead of /etc/godhand/LAB/, where an installation
+    copies it). `extra(name, xml)` may rewrite a host's own profiles (name "server" for the
+    discovery server's). Returns ({host: lab file}, {host: its profiles}, server profile or None)."""
+    src = write_lab(tmp, deploy, server)
+    out = os.path.join(tmp, "rendered")
+    r = run([os.path.join(bin_dir, "godhand-launch"), "--lab", src, "--render", "systemd", out], 60)
+    print(r.stdout + r.stderr)
+    check(r.returncode == 0, f"godhand-launch --render systemd wrote every host's files (exit {r.returncode})")
+    labs, profiles = {}, {}
+    for name, _ in HOSTS:
+        d = os.path.join(out, name)
+        text = open(os.path.join(d, "lab.pbtxt")).read()
+        check("/etc/godhand/multihost-test/profiles-" in text, f"{name}: rendered lab file names the installed profiles")
+        labs[name] = os.path.join(d, "lab-here.pbtxt")
+        open(labs[name], "w").write(text.replace("/etc/godhand/multihost-test/", d + "/"))
+        profiles[name] = os.path.join(d, f"profiles-{name}.xml")
         if extra:
-            x = extra(name, x)
-        out[name] = os.path.join(tmp, f"profiles-{name}.xml")
-        open(out[name], "w").write(x)
-    return out
-
-
-def host_profiles(tmp, deploy, server_addr, extra=None):
-    """Per-host client profiles and the server profile from the shipped templates (placeholders
-    192.0.2.10 = this host, 192.0.2.1 = the server). `extra(name, xml)` may rewrite a host's file
-    (name "server" for the discovery server's)."""
-    client = open(os.path.join(deploy, "dds", "godhand-multihost-ds.xml")).read()
-    server = open(os.path.join(deploy, "dds", "godhand-discovery-server.xml")).read()
-    assert "192.0.2.10" in client and "192.0.2.1<" in client and "192.0.2.1<" in server
-    out = {}
-    for name, addr in HOSTS:
-        x = client.replace("192.0.2.10", addr).replace("192.0.2.1<", server_addr + "<")
-        if extra:
-            x = extra(name, x)
-        out[name] = os.path.join(tmp, f"profiles-{name}.xml")
-        open(out[name], "w").write(x)
-    srv = os.path.join(tmp, "profiles-server.xml")
-    x = server.replace("192.0.2.1<", server_addr + "<")
-    open(srv, "w").write(extra("server", x) if extra else x)
-    return out, srv
+            text = extra(name, open(profiles[name]).read())
+            open(profiles[name], "w").write(text)
+    server_xml = os.path.join(out, SERVER_HOST, "discovery-server.xml") if server else None
+    if server_xml and extra:
+        text = extra("server", open(server_xml).read())
+        open(server_xml, "w").write(text)
+    return labs, profiles, server_xml
 
 
 def stop(p, sig):
@@ -199,7 +191,7 @@ class Lab:
             p.wait()
 
 
-def lab_run(lab, tmp, bin_dir, lab_file, domain, server_xml, mode_args, tag, timeout=180, probes=(), probes_ready=None,
+def lab_run(lab, tmp, bin_dir, lab_files, domain, server_xml, mode_args, tag, timeout=180, probes=(), probes_ready=None,
             check_run=True):
     """One run across the namespaces. `probes`: (name, host, argv) started once the other hosts'
     launches run, before the ingest host's, and stopped (SIGTERM) after it; their output goes to
@@ -213,10 +205,11 @@ def lab_run(lab, tmp, bin_dir, lab_file, domain, server_xml, mode_args, tag, tim
                            os.path.join(logs, "discovery-server.out"))
         time.sleep(0.5)
         check(server.poll() is None, f"[{tag}] discovery server runs on {SERVER_HOST}")
-    base = [os.path.join(bin_dir, "godhand-launch"), "--lab", lab_file, "--domain", str(domain), "--quiet"] + mode_args
+    def base(host):
+        return [os.path.join(bin_dir, "godhand-launch"), "--lab", lab_files[host], "--domain", str(domain), "--quiet"] + mode_args
     others = {}
     for name in ("scene", "solvers"):
-        others[name] = lab.start(name, base + ["--host", name, "--log-dir", os.path.join(logs, name),
+        others[name] = lab.start(name, base(name) + ["--host", name, "--log-dir", os.path.join(logs, name),
                                                "--json", os.path.join(tmp, f"{tag}-{name}.json")],
                                  os.path.join(logs, f"launch-{name}.out"))
     running = []
@@ -230,7 +223,7 @@ def lab_run(lab, tmp, bin_dir, lab_file, domain, server_xml, mode_args, tag, tim
             ok = probes_ready(logs)
         check(ok, f"[{tag}] probes ready before the ingest starts ({time.time() - t0:.1f} s)")
     report = os.path.join(tmp, f"{tag}-ingest.json")
-    ingest = lab.start("ingest", base + ["--host", "ingest", "--log-dir", os.path.join(logs, "ingest"), "--json", report] +
+    ingest = lab.start("ingest", base("ingest") + ["--host", "ingest", "--log-dir", os.path.join(logs, "ingest"), "--json", report] +
                        (["--check"] if check_run else []), os.path.join(logs, "launch-ingest.out"))
     # Injecting probes stop as soon as the ingest is done: the ingest host's late-joiner check
     # (which follows) must see the lab's hands only.
@@ -301,12 +294,7 @@ def inner(bin_dir, deploy, domain, recording, tmp, profile_hook=None, tag_prefix
     lab = Lab()
     try:
         lab.build()
-        server_addr = dict(HOSTS)[SERVER_HOST]
-        if server:
-            profiles, server_xml = host_profiles(tmp, deploy, server_addr, profile_hook)
-        else:
-            profiles, server_xml = peer_profiles(tmp, deploy, profile_hook), None
-        lab_file = write_lab(tmp, deploy, profiles, server)
+        lab_files, profiles, server_xml = render_lab(tmp, bin_dir, deploy, server, profile_hook)
         # The lab works as a network: each host reaches the others over its lab link.
         r = subprocess.run(lab.enter("ingest") + ["ping", "-c", "1", "-W", "2", "10.231.0.3"], capture_output=True, text=True) \
             if shutil.which("ping") else None
@@ -323,7 +311,7 @@ def inner(bin_dir, deploy, domain, recording, tmp, profile_hook=None, tag_prefix
         # No --check: it also fails a lock-step run whose states arrive older than stale_after_s
         # (0.25 s), which a loaded machine produces across namespaces; what matters here is
         # checked below: every frame, none lost, the same poses as in-process (the hash).
-        rc, j, rcs = lab_run(lab, tmp, bin_dir, lab_file, domain, server_xml, ["--lockstep", "--recording", recording],
+        rc, j, rcs = lab_run(lab, tmp, bin_dir, lab_files, domain, server_xml, ["--lockstep", "--recording", recording],
                              tag_prefix + "lockstep", probes=probes(profiles) if probes else (), probes_ready=probes_ready,
                              check_run=False)
         check(rc == 0 and not j.get("failure"),
@@ -347,7 +335,7 @@ def inner(bin_dir, deploy, domain, recording, tmp, profile_hook=None, tag_prefix
 
         # Live: latency across the namespaces.
         # (no --check: on a loaded machine the live run may lose frames, which is a figure here, not a failure)
-        rc, jl, rcs = lab_run(lab, tmp, bin_dir, lab_file, domain, server_xml, ["--recording", recording], tag_prefix + "live",
+        rc, jl, rcs = lab_run(lab, tmp, bin_dir, lab_files, domain, server_xml, ["--recording", recording], tag_prefix + "live",
                               check_run=False)
         check(rc == 0, "live run across three namespaces: ingest host's launch exited 0")
         print(f"FIGURE {tag_prefix}multihost_live_delivery {json.dumps(jl.get('delivery'))} states {jl.get('hand_states')}", flush=True)
