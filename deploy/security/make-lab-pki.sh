@@ -17,7 +17,8 @@
 #         every role publishes ServiceStatus (heartbeats).
 # Writes OUTDIR/ca.key, ca.pem, NAME.key, NAME.pem, governance.xml/.p7s, permissions.xml/.p7s.
 # Options (environment): GODHAND_PKI_DAYS (validity, default 365), GODHAND_PKI_DOMAINS
-# (domain range of the rules, default 0-232).
+# (domain range of the rules, default 0-232), GODHAND_PKI_RTPS_PROTECTION (whole RTPS messages:
+# ENCRYPT, the default, SIGN or NONE; submessages and data stay encrypted either way).
 #
 # Governance: no unauthenticated participant may join (allow_unauthenticated_participants
 # false), join and topic access control on, discovery, liveliness and RTPS messages encrypted
@@ -25,10 +26,14 @@
 # private (chmod 700), copy to each host only its own key. Generate, never commit.
 set -euo pipefail
 
-if [[ $# -lt 2 || "$1" == "-h" || "$1" == "--help" ]]; then
-  sed -n '2,25p' "$0" | sed 's/^# \{0,1\}//'
-  [[ $# -lt 2 && "${1:-}" != "-h" && "${1:-}" != "--help" ]] && exit 2
+usage() { sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; }
+if [[ "${1:-}" == "-h" || "${1:-}" == "--help" ]]; then
+  usage
   exit 0
+fi
+if [[ $# -lt 2 ]]; then
+  echo "make-lab-pki.sh: expected OUTDIR NAME:ROLE [NAME:ROLE ...] (see --help)" >&2
+  exit 2
 fi
 command -v openssl >/dev/null || { echo "make-lab-pki.sh: openssl not found (apt-get install openssl)" >&2; exit 2; }
 out=$1
@@ -39,6 +44,10 @@ dmin=${domains%-*}
 dmax=${domains#*-}
 [[ "$days" =~ ^[0-9]+$ && "$dmin" =~ ^[0-9]+$ && "$dmax" =~ ^[0-9]+$ ]] ||
   { echo "make-lab-pki.sh: GODHAND_PKI_DAYS must be a number, GODHAND_PKI_DOMAINS MIN-MAX" >&2; exit 2; }
+rtps=${GODHAND_PKI_RTPS_PROTECTION:-ENCRYPT}
+case $rtps in ENCRYPT | SIGN | NONE) ;;
+  *) echo "make-lab-pki.sh: GODHAND_PKI_RTPS_PROTECTION must be ENCRYPT, SIGN or NONE, got '$rtps'" >&2; exit 2 ;;
+esac
 
 declare -a names roles
 for spec in "$@"; do
@@ -86,7 +95,7 @@ cat >governance.xml <<EOF
       <enable_join_access_control>true</enable_join_access_control>
       <discovery_protection_kind>ENCRYPT</discovery_protection_kind>
       <liveliness_protection_kind>ENCRYPT</liveliness_protection_kind>
-      <rtps_protection_kind>${GODHAND_PKI_RTPS_PROTECTION:-ENCRYPT}</rtps_protection_kind>
+      <rtps_protection_kind>$rtps</rtps_protection_kind>
       <topic_access_rules>
         <topic_rule>
           <topic_expression>*</topic_expression>
