@@ -293,6 +293,14 @@ LabConfig parseLab(const std::string& text, const std::string& source, const std
     lab.discovery_port = static_cast<int>(msg.discovery_port());
   }
 
+  if (!msg.security().empty()) {
+    if (!lab.discovery_server.empty())
+      top.fail("security", "DDS-Security and a discovery server do not work together with Fast DDS 2.9.1 (the server's "
+                           "GUID prefix is derived from its certificate): leave discovery_server empty");
+    const fs::path sp(msg.security());
+    lab.security = (sp.is_absolute() ? sp : base / sp).lexically_normal().string();
+  }
+
   // Services.
   const FieldDescriptor* f_services = msg.GetDescriptor()->FindFieldByName("services");
   std::map<std::string, int> service_index;  // name -> index in the file

@@ -64,6 +64,7 @@ struct LabConfig {
   std::vector<LabHost> hosts;        ///< in file order; empty: services run where `host` says
   std::string discovery_server;      ///< the host running `fastdds discovery`, "" = none
   int discovery_port = 11811;        ///< its UDP port
+  std::string security;              ///< the lab PKI's directory on the hosts (absolute), "" = none
 
   /// The cluster with that name, nullptr if none.
   const LabCluster* cluster(const std::string& name) const;

@@ -67,7 +67,32 @@ std::string num(double x) {
 
 }  // namespace
 
+namespace {
+
+/// `xml` with the DDS-Security properties of identity `identity` inserted into the participant
+/// profile (before its </rtps>).
+std::string secured(const std::string& xml, const LabConfig& lab, const std::string& identity, const RenderOptions& o) {
+  if (lab.security.empty()) return xml;
+  const size_t block = o.security_template.find("<propertiesPolicy>");
+  const size_t end = o.security_template.find("</propertiesPolicy>");
+  if (block == std::string::npos || end == std::string::npos)
+    throw LabError("--render: the security template has no <propertiesPolicy> block");
+  std::string props = o.security_template.substr(block, end + std::strlen("</propertiesPolicy>") - block);
+  props = replaceAll(props, "@PKI_DIR@", lab.security, "security");
+  props = replaceAll(props, "@IDENTITY@", identity, "security");
+  const size_t participant = xml.find("<participant ");
+  const size_t rtps_end = participant == std::string::npos ? std::string::npos : xml.find("</rtps>", participant);
+  if (rtps_end == std::string::npos) throw LabError("--render: the profiles template has no participant <rtps> element");
+  return xml.substr(0, rtps_end) + props + "\n    " + xml.substr(rtps_end);
+}
+
+}  // namespace
+
 std::string renderHostProfiles(const LabConfig& lab, const LabHost& host, const RenderOptions& o) {
+  return secured(renderPlainProfiles(lab, host, o), lab, host.name, o);
+}
+
+std::string renderPlainProfiles(const LabConfig& lab, const LabHost& host, const RenderOptions& o) {
   if (!lab.discovery_server.empty()) {
     const LabHost* server = lab.host(lab.discovery_server);
     if (!server) throw LabError("--render: discovery_server " + quoted(lab.discovery_server) + " is not a host of the lab");
@@ -111,6 +136,7 @@ std::string renderLabText(const LabConfig& lab, const std::string& profiles_dir)
   }
   if (!lab.discovery_server.empty())
     s << "discovery_server: " << quoted(lab.discovery_server) << "\ndiscovery_port: " << lab.discovery_port << "\n";
+  if (!lab.security.empty()) s << "security: " << quoted(lab.security) << "\n";
   for (const LabCluster& c : lab.clusters)
     s << "clusters { name: " << quoted(c.name) << " model: " << quoted(c.model) << " side: " << quoted(c.side) << " }\n";
   for (const LabService& v : lab.services) {
@@ -207,7 +233,12 @@ std::vector<RenderedFile> renderSystemd(const LabConfig& lab, const RenderOption
              ". the ingest's host last (its launcher waits for every other service, then starts the tracker)\n";
     out.push_back({p + "INSTALL",
                    "godhand lab " + lab.name + ", host " + h.name + " (" + h.address + "): " + services + "\n\n"
-                   "On " + h.name + ", as root:\n"
+                   "On " + h.name + ", as root:\n" +
+                   (lab.security.empty() ? std::string()
+                                         : "  mkdir -p " + lab.security + " && chmod 700 " + lab.security +
+                                               " && cp PKI/ca.pem PKI/governance.p7s PKI/permissions.p7s PKI/" + h.name +
+                                               ".pem PKI/" + h.name + ".key " + lab.security +
+                                               "/   (PKI: make-lab-pki.sh's output; only this host's key)\n") +
                    "  mkdir -p " + dir + " && cp lab.pbtxt profiles-*.xml " + unit + ".env" +
                        (server ? " discovery-server.xml" : "") + " " + dir + "/\n"
                    "  cp " + unit + ".service" + (server ? " " + unit + "-discovery.service" : "") + " /etc/systemd/system/\n"
@@ -277,6 +308,7 @@ int renderCommand(const LabConfig& lab, const std::string& kind, const std::stri
     o.client_template = read(dds_dir + "/godhand-multihost-ds.xml");
     o.peers_template = read(dds_dir + "/godhand-multihost.xml");
     o.server_template = read(dds_dir + "/godhand-discovery-server.xml");
+    if (!lab.security.empty()) o.security_template = read(dds_dir + "/../security/participant-security.xml");
     const std::vector<RenderedFile> files = renderSystemd(lab, o);
     writeRendered(files, outdir);
     std::printf("godhand-launch: rendered lab '%s' for %zu host(s) into %s (%zu files); see HOST/INSTALL\n", lab.name.c_str(),

@@ -14,6 +14,10 @@
 //                                   peers to every host (godhand-multihost.xml)
 //   INSTALL                         where each file goes, in which order to start the hosts
 //
+// With Lab.security (a lab PKI directory on the hosts, from deploy/security/make-lab-pki.sh),
+// every host's profiles carry the DDS-Security properties (participant-security.xml) with the
+// host's own identity (HOST.pem, HOST.key) and the lab's CA, governance and permissions.
+//
 // Every host's directory is meant for /etc/godhand/LAB/ (RenderOptions::install_dir) and its
 // units for /etc/systemd/system/. Rendering is pure (text in, files as text out) apart from
 // writeRendered(); errors are LabError with one line.
@@ -36,6 +40,7 @@ struct RenderOptions {
   std::string client_template;        ///< text of deploy/dds/godhand-multihost-ds.xml
   std::string peers_template;         ///< text of deploy/dds/godhand-multihost.xml
   std::string server_template;        ///< text of deploy/dds/godhand-discovery-server.xml
+  std::string security_template;      ///< text of deploy/security/participant-security.xml (Lab.security)
   std::string install_dir = "/etc/godhand";  ///< each host's files go to INSTALL_DIR/LAB/
   std::string discovery_tool = "/usr/bin/fast-discovery-server";
 };
@@ -44,8 +49,10 @@ struct RenderOptions {
 /// placeholders, a lab name that cannot name a unit).
 std::vector<RenderedFile> renderSystemd(const LabConfig& lab, const RenderOptions& options);
 
-/// Host `host`'s Fast DDS profiles from the templates (see above).
+/// Host `host`'s Fast DDS profiles from the templates (see above), secured with Lab.security.
 std::string renderHostProfiles(const LabConfig& lab, const LabHost& host, const RenderOptions& options);
+/// The same without the security properties.
+std::string renderPlainProfiles(const LabConfig& lab, const LabHost& host, const RenderOptions& options);
 
 /// The lab as protobuf text (schema idl/lab.proto) with absolute paths; `profiles_dir` non-empty:
 /// every host's `profiles` is PROFILES_DIR/profiles-HOST.xml.

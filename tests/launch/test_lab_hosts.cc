@@ -81,6 +81,14 @@ TEST(LabHosts, BadHostsRejectedWithLine) {
               "inline.pbtxt:5: discovery_port: ", "1..65535");
 }
 
+TEST(LabHosts, Security) {
+  const LabConfig lab = parseLab(kHead + kHosts + "security: \"pki\"\n" + kServices, "inline.pbtxt", kLabDir);
+  EXPECT_EQ(lab.security, fs::path(kLabDir + "/pki").lexically_normal().string());
+  EXPECT_EQ(parseLab(kHead + kHosts + kServices, "inline.pbtxt", kLabDir).security, "");
+  expectError(kHead + kHosts + "discovery_server: \"compute\"\nsecurity: \"/etc/pki\"\n" + kServices,
+              "inline.pbtxt:6: security: ", "do not work together");
+}
+
 TEST(LabHosts, EveryServiceNamesAListedHost) {
   expectError(kHead + kHosts + "services { kind: INGEST host: \"render\" }\n", "inline.pbtxt:5: services[0].host: ",
               "no host named \"render\" (hosts: tracker, compute)");

@@ -149,6 +149,36 @@ TEST(Render, WithoutDiscoveryServerEveryHostIsAnInitialPeer) {
   EXPECT_EQ(p.find("CLIENT"), std::string::npos);
 }
 
+TEST(Render, SecuredLabGetsEachHostsIdentity) {
+  LabConfig lab = loadLab(kDeploy + "/lab/two-machines.pbtxt");
+  lab.discovery_server.clear();  // (a lab file with both is refused, see LabHosts)
+  lab.security = "/etc/godhand/two-machines/pki";
+  RenderOptions o = options();
+  o.security_template = readFile(kDeploy + "/security/participant-security.xml");
+  const auto files = byPath(renderSystemd(lab, o));
+  for (const std::string h : {"tracker-pc", "compute-pc"}) {
+    const std::string p = files.at("compute-pc/profiles-" + h + ".xml");
+    EXPECT_NE(p.find("<value>builtin.PKI-DH</value>"), std::string::npos);
+    EXPECT_NE(p.find("<value>builtin.AES-GCM-GMAC</value>"), std::string::npos);
+    EXPECT_NE(p.find("<value>builtin.Access-Permissions</value>"), std::string::npos);
+    EXPECT_NE(p.find("file:///etc/godhand/two-machines/pki/" + h + ".pem"), std::string::npos) << p;
+    EXPECT_NE(p.find("file:///etc/godhand/two-machines/pki/" + h + ".key"), std::string::npos);
+    EXPECT_NE(p.find("file:///etc/godhand/two-machines/pki/governance.p7s"), std::string::npos);
+    EXPECT_EQ(p.find("@IDENTITY@"), std::string::npos);
+    EXPECT_EQ(p.find("@PKI_DIR@"), std::string::npos);
+    // inside the participant's <rtps>, before it closes
+    const size_t props = p.find("<propertiesPolicy>"), rtps_end = p.find("</rtps>", p.find("<participant "));
+    EXPECT_LT(props, rtps_end);
+    EXPECT_GT(props, p.find("<participant "));
+    EXPECT_EQ(renderPlainProfiles(lab, *lab.host(h), o).find("propertiesPolicy"), std::string::npos);
+  }
+  EXPECT_NE(files.at("tracker-pc/lab.pbtxt").find("security: \"/etc/godhand/two-machines/pki\""), std::string::npos);
+  EXPECT_NE(files.at("tracker-pc/INSTALL").find("PKI/tracker-pc.key"), std::string::npos);
+  EXPECT_EQ(files.at("tracker-pc/INSTALL").find("compute-pc.key"), std::string::npos) << "only the host's own key";
+  o.security_template = "nothing";
+  EXPECT_THROW(renderSystemd(lab, o), LabError);
+}
+
 TEST(Render, RejectsWhatCannotBeDeployed) {
   const LabConfig local = loadLab(kDeploy + "/lab/local.pbtxt");
   try {

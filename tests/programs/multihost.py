@@ -60,8 +60,9 @@ def sh(cmd):
     return r.stdout
 
 
-def write_lab(tmp, deploy, server=True):
-    """The lab's one configuration: three hosts with their addresses, the discovery server."""
+def write_lab(tmp, deploy, server=True, security=""):
+    """The lab's one configuration: three hosts with their addresses, the discovery server (or,
+    secured, the lab PKI's directory)."""
     dep = os.path.abspath(deploy)
     hosts = "".join(f'hosts {{ name: "{n}" address: "{a}" }}\n' for n, a in HOSTS)
     text = f"""name: "multihost-test"
@@ -69,6 +70,7 @@ domain_id: 0
 scene: "{dep}/scenes/default.pbtxt"
 recording: "{dep}/recordings/pinch.json"
 {hosts}{f'discovery_server: "{SERVER_HOST}"' if server else ""}
+{f'security: "{security}"' if security else ""}
 clusters {{ name: "right" model: "{dep}/models/hand16_right.pbtxt" side: "right" }}
 clusters {{ name: "left" model: "{dep}/models/hand16_left.pbtxt" side: "left" }}
 services {{ kind: INGEST host: "ingest" }}
@@ -82,13 +84,13 @@ services {{ kind: SOLVER cluster: "left" host: "solvers" }}
     return path
 
 
-def render_lab(tmp, bin_dir, deploy, server=True, extra=None):
+def render_lab(tmp, bin_dir, deploy, server=True, extra=None, security=""):
     """Deploys the lab as a lab admin would: `godhand-launch --render systemd OUT` from the one lab
     file, then each host uses its own rendered directory OUT/HOST/ (its lab.pbtxt, identical on
     every host, pointed at that directory instead of /etc/godhand/LAB/, where an installation
     copies it). `extra(name, xml)` may rewrite a host's own profiles (name "server" for the
     discovery server's). Returns ({host: lab file}, {host: its profiles}, server profile or None)."""
-    src = write_lab(tmp, deploy, server)
+    src = write_lab(tmp, deploy, server, security)
     out = os.path.join(tmp, "rendered")
     r = run([os.path.join(bin_dir, "godhand-launch"), "--lab", src, "--render", "systemd", out], 60)
     print(r.stdout + r.stderr)
@@ -285,7 +287,8 @@ def lab_run(lab, tmp, bin_dir, lab_files, domain, server_xml, mode_args, tag, ti
     return rc, j, rcs
 
 
-def inner(bin_dir, deploy, domain, recording, tmp, profile_hook=None, tag_prefix="", probes=None, server=True, probes_ready=None):
+def inner(bin_dir, deploy, domain, recording, tmp, profile_hook=None, tag_prefix="", probes=None, server=True, probes_ready=None,
+          security=""):
     """The three-host runs; `profile_hook(name, xml)` rewrites each host's (and the server's)
     profiles, `probes(profiles)` gives the probes of the lock-step run (the live run, which
     measures latency, has none); server=False: discovery
@@ -294,7 +297,7 @@ def inner(bin_dir, deploy, domain, recording, tmp, profile_hook=None, tag_prefix
     lab = Lab()
     try:
         lab.build()
-        lab_files, profiles, server_xml = render_lab(tmp, bin_dir, deploy, server, profile_hook)
+        lab_files, profiles, server_xml = render_lab(tmp, bin_dir, deploy, server, profile_hook, security)
         # The lab works as a network: each host reaches the others over its lab link.
         r = subprocess.run(lab.enter("ingest") + ["ping", "-c", "1", "-W", "2", "10.231.0.3"], capture_output=True, text=True) \
             if shutil.which("ping") else None

@@ -1,14 +1,15 @@
 #!/usr/bin/env python3
-"""DDS-Security across three hosts: the lab of multihost.py (three network namespaces, UDP only,
-discovery server) with every participant authenticated (PKI-DH), everything encrypted
-(AES-GCM-GMAC) and per-topic permissions, from a PKI made here at run time by
-deploy/security/make-lab-pki.sh in a temporary directory (never committed):
+"""DDS-Security across three hosts: the lab of multihost.py (three network namespaces, UDP only)
+with every participant authenticated (PKI-DH), everything encrypted (AES-GCM-GMAC) and per-topic
+permissions, from a PKI made here at run time by deploy/security/make-lab-pki.sh in a temporary
+directory (never committed). The lab file names the PKI (`security:`), and `godhand-launch
+--render systemd` writes each host's secured profiles (its identity is its name). Discovery
+through unicast initial peers: Fast DDS 2.9.1 cannot secure a discovery server.
 
     identity   role      may publish (besides ServiceStatus)
     ingest     ingest    HandTarget                      the ingest host
     solvers    solver    HandProposal                    the solvers host
     scene      scene     HandState, ContactForces, SceneState, SceneDescription   scene + resolver
-    discovery  monitor   -                               the discovery server
     observer   monitor   -                               a test reader (positive control)
     rogue      monitor   -                               authenticated, no right to write HandState
 
@@ -36,14 +37,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import multihost  # noqa: E402
 from multihost import check, failures, HOSTS  # noqa: E402
 
-IDENTITIES = {"ingest": "ingest", "solvers": "solver", "scene": "scene", "discovery": "monitor", "observer": "monitor",
-              "rogue": "monitor"}
-
-
-def secure(xml, snippet, pki, identity):
-    block = snippet.replace("@PKI_DIR@", pki).replace("@IDENTITY@", identity)
-    i = xml.index("</rtps>", xml.index("<participant "))
-    return xml[:i] + block + "\n    " + xml[i:]
+IDENTITIES = {"ingest": "ingest", "solvers": "solver", "scene": "scene", "observer": "monitor", "rogue": "monitor"}
 
 
 def counts(out, topic):
@@ -72,19 +66,18 @@ def inner(bin_dir, deploy, domain, recording, tmp, probe):
     check(r.returncode == 0, "make-lab-pki.sh made the lab PKI")
     if r.returncode != 0:
         return
-    snippet = open(os.path.join(deploy, "security", "participant-security.xml")).read()
-    snippet = snippet[snippet.index("<propertiesPolicy>"):]
-    plain = {}
-
-    def hook(name, xml):
-        plain[name] = xml
-        return secure(xml, snippet, pki, "discovery" if name == "server" else name)
-
+    # The lab's profiles are secured by `godhand-launch --render` (Lab.security: each host's
+    # identity is its name); the probes take the ingest host's rendered profiles with another
+    # identity, or without the security properties.
     def probes(profiles):
+        rendered = open(profiles["ingest"]).read()
+        check("builtin.PKI-DH" in rendered and f"{pki}/ingest.pem" in rendered,
+              "the rendered profiles of the ingest host carry DDS-Security with its identity")
         ingest_plain = os.path.join(tmp, "probe-plain.xml")
-        open(ingest_plain, "w").write(plain["ingest"])
+        open(ingest_plain, "w").write(re.sub(r"<propertiesPolicy>.*?</propertiesPolicy>", "", rendered, flags=re.S))
         for ident in ("observer", "rogue", "scene"):
-            open(os.path.join(tmp, f"probe-{ident}.xml"), "w").write(secure(plain["ingest"], snippet, pki, ident))
+            open(os.path.join(tmp, f"probe-{ident}.xml"), "w").write(
+                rendered.replace(f"{pki}/ingest.pem", f"{pki}/{ident}.pem").replace(f"{pki}/ingest.key", f"{pki}/{ident}.key"))
         base = [probe, "--domain", str(domain), "--seconds", "120"]
         return [("no-cert-reader", "ingest", base + ["--mode", "read", "--profiles", ingest_plain]),
                 ("observer", "ingest", base + ["--mode", "read", "--profiles", os.path.join(tmp, "probe-observer.xml")]),
@@ -107,8 +100,8 @@ def inner(bin_dir, deploy, domain, recording, tmp, probe):
             return False
         return any(int(m.group(1)) >= 2 for m in re.finditer(r"matched hand_state (\d+)", text))
 
-    res = multihost.inner(bin_dir, deploy, domain, recording, tmp, profile_hook=hook, tag_prefix="secured-",
-                          probes=probes, server=False, probes_ready=ready)
+    res = multihost.inner(bin_dir, deploy, domain, recording, tmp, tag_prefix="secured-", probes=probes, server=False,
+                          probes_ready=ready, security=pki)
     if not res:
         return
     _, _, out = res
