@@ -116,6 +116,7 @@ int main(int argc, char** argv) {
       synthetic_model = HandModel::loadFile(lab.clusters[static_cast<std::size_t>(synthetic_hand)].model);
       synthetic_start = syntheticStart(loadScene(lab.scene));
       if (!lab.recording.empty()) synthetic_rate = svc::recordingFrameRate(lab.recording);
+      if (!(synthetic_rate >= 1.0 && synthetic_rate <= 1000.0)) synthetic_rate = 60.0;  // no usable rate: 60 Hz
     } catch (const std::exception& e) {
       cli.fail(e.what());
     }
