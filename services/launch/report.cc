@@ -27,7 +27,7 @@ void printSummary(const RunReport& r) {
   }
   if (r.old_unmarked > 0)
     std::printf("  WARNING: %ld hand states arrived older than %.2f s without the stale flag (counted stale)\n", r.old_unmarked,
-                r.stale_after_s);
+                r.stale_after_s + 0.1);
   std::printf("  end-to-end latency (tracker sample -> HandState here): median %.0f us, p99 %.0f us, max %.0f us; %.1f fresh frames/s\n",
               r.latency_median_us, r.latency_p99_us, r.latency_max_us, r.frames_per_s);
   for (const auto& [name, s] : r.services)

@@ -52,7 +52,7 @@ struct RunReport {
   double replay_span_s = 0;             ///< first to last fresh HandState received
   double frames_per_s = 0;              ///< fresh frames (min over clusters) / replay_span_s
   long states = 0, stale_states = 0, held_states = 0;
-  long old_unmarked = 0;                ///< received older than the stale limit but not flagged stale
+  long old_unmarked = 0;                ///< received older than the stale limit + 0.1 s but not flagged stale (the resolver's miss)
   double stale_after_s = 0;
 
   // Latency and compute.
