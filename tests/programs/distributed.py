@@ -8,7 +8,7 @@ that nothing is left behind: no process of its domain, no new shared-memory segm
 usage: distributed.py CASE BIN_DIR DEPLOY_DIR DOMAIN [args]
 cases: same-hash RECORDING | live RECORDING | kill SERVICE RECORDING | rejects | loopback RECORDING |
        drills RECORDING | freeze SERVICE RECORDING | freeze-restart SERVICE RECORDING | startup-remote |
-       lockstep-fail RECORDING | two-labs RECORDING | profiles-qos
+       lockstep-fail RECORDING | two-labs RECORDING | profiles-qos | hand-kill SERVICE RECORDING
 """
 import re
 import signal
@@ -231,6 +231,33 @@ def case_drills(recording):
           f"the killed processes' segments were removed by the launcher ({j.get('shm_segments_removed')}), none left")
     delivery_checks(j)
     common_checks(j)
+
+
+def case_hand_kill(service, recording):
+    """kill -9 of a service by hand (not by the launcher) under --restart: restarted, and the
+    segments the dead process left in /dev/shm removed by its own launcher, by name."""
+    p, report = launch_bg(["--recording", recording, "--speed", "0.5", "--restart", "--quiet"])
+    try:
+        deadline = time.time() + 120
+        pid = None
+        while time.time() < deadline and pid is None:
+            time.sleep(0.2)
+            pid = pid_of(service) if any("--source" in l for l in processes_of_domain()) else None  # the ingest runs
+        check(pid is not None, f"{service} found ({pid})")
+        time.sleep(1.0)
+        if pid:
+            os.kill(pid, signal.SIGKILL)
+        out, _ = p.communicate(timeout=240)
+    except Exception:
+        p.kill()
+        p.communicate()
+        raise
+    print(out)
+    j = json.load(open(report)) if os.path.exists(report) else {}
+    check(p.returncode == 0 and f"{service} restarted" in out, f"{service} restarted after a kill -9 by hand (exit {p.returncode})")
+    check(j.get("shm_segments_removed", 0) >= 1 and j.get("shm_segments_left", -1) == 0,
+          f"its segments removed by the launcher ({j.get('shm_segments_removed')}), none left ({j.get('shm_segments_left')})")
+    delivery_checks(j)
 
 
 def case_startup_remote():
@@ -497,6 +524,8 @@ try:
         case_startup_remote()
     elif CASE == "profiles-qos":
         case_profiles_qos()
+    elif CASE == "hand-kill":
+        case_hand_kill(ARGS[0], ARGS[1])
     elif CASE == "two-labs":
         case_two_labs(ARGS[0])
     elif CASE == "lockstep-fail":
