@@ -668,10 +668,11 @@ int main(int argc, char** argv) {
       const double lat = h.stamp().source_time_ns() > 0 ? static_cast<double>(svc::nowNs() - h.stamp().source_time_ns()) * 1e-3 : 0.0;
       if (h.hand() >= C) continue;
       // Stale whatever the cause: flagged by the resolver, or older than the stale limit here.
-      const bool too_old = h.stamp().source_time_ns() > 0 && lat * 1e-6 > stale_after;
+      // (Lock-step frames are never stale by age: a slow deterministic run is still exact.)
+      const bool too_old = !lockstep && h.stamp().source_time_ns() > 0 && lat * 1e-6 > stale_after;
       const bool stale_rx = h.stale() || too_old;
       // The resolver must have flagged it (0.1 s allowed for the way from the resolver to here).
-      if (lat * 1e-6 > stale_after + 0.1 && h.stamp().source_time_ns() > 0 && !h.stale() && !(h.held() && run_over)) ++rep.old_unmarked;
+      if (!lockstep && lat * 1e-6 > stale_after + 0.1 && h.stamp().source_time_ns() > 0 && !h.stale() && !(h.held() && run_over)) ++rep.old_unmarked;
       delivery.add(h.hand(), h.stamp().run(), h.stamp().frame(), stale_rx);
       if (lockstep) {
         FrameHands& f = pending[h.stamp().frame()];
