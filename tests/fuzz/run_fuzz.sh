@@ -18,7 +18,7 @@ FLAGS=(-std=c++17 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recov
 declare -A SOURCES=(
   [dtrack]="$SRC/tests/fuzz/fuzz_dtrack.cc $SRC/bridges/dtrack/dtrack.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
   [leap]="$SRC/tests/fuzz/fuzz_leap.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
-  [jsonl]="$SRC/tests/fuzz/fuzz_jsonl.cc $SRC/bridges/skeleton/jsonl.cc $SRC/bridges/skeleton/skeleton.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
+  [jsonl]="$SRC/tests/fuzz/fuzz_jsonl.cc $SRC/bridges/skeleton/jsonl.cc $SRC/bridges/skeleton/skeleton.cc $SRC/bridges/skeleton/aria.cc $SRC/bridges/synthetic/synthetic.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
 )
 status=0
 for t in "${TARGETS[@]}"; do
