@@ -208,12 +208,36 @@ double CollisionWorld::penetration(const Shape& shape, const Pose& X_WB, int* ob
     double depth = 0.0;
     geo::NearTriangle c;
     const geo::Aabb& rb = o.reference->bounds();
-    const bool in_box = (X_OB.p.array() >= rb.lo.array()).all() && (X_OB.p.array() <= rb.hi.array()).all();
-    if (in_box && o.reference->inside(X_OB.p)) {
+    auto in_box = [&](const Vec3& p) { return (p.array() >= rb.lo.array()).all() && (p.array() <= rb.hi.array()).all(); };
+    if (in_box(X_OB.p) && o.reference->inside(X_OB.p)) {
       o.reference->closest(shape, X_OB, kInf, &c);
       depth = c.closest.core_distance + geo::coreRadius(shape);
     } else if (o.reference->closest(shape, X_OB, 0.0, &c)) {
       depth = std::max(0.0, -c.closest.distance);
+      if (c.closest.core_distance <= 0.0) {
+        // The core itself crosses the surface: the shell overlap (r) understates it. The depth
+        // is that of the core's deepest extreme point inside (a capsule's ends, a box's
+        // corners) plus the radius.
+        Vec3 pts[8];
+        int np = 0;
+        if (shape.type == ShapeType::Capsule) {
+          const Vec3 h = X_OB.q * Vec3(0, 0, shape.half_length);
+          pts[np++] = X_OB.p + h;
+          pts[np++] = X_OB.p - h;
+        } else if (shape.type == ShapeType::Box) {
+          for (int k = 0; k < 8; ++k)
+            pts[np++] = X_OB * Vec3((k & 1) ? 1 : -1, (k & 2) ? 1 : -1, (k & 4) ? 1 : -1).cwiseProduct(shape.half_extents);
+        }
+        Shape point;
+        point.type = ShapeType::Sphere;
+        point.radius = 0.0;
+        for (int k = 0; k < np; ++k) {
+          if (!in_box(pts[k]) || !o.reference->inside(pts[k])) continue;
+          geo::NearTriangle e;
+          if (o.reference->closest(point, Pose{pts[k], Quat::Identity()}, kInf, &e))
+            depth = std::max(depth, e.closest.core_distance + geo::coreRadius(shape));
+        }
+      }
     }
     if (depth > deepest) {
       deepest = depth;

@@ -116,9 +116,55 @@ void HandSolver::resume(const HandResult& result) {
   last_errors_ = result.joint_errors;
 }
 
+bool HandSolver::freeStart(std::vector<Pose>* X, Vec3* shift) const {
+  // The hand is moved as one rigid translation. First out along the exit normal of its deepest
+  // overlap, repeatedly (a target a few mm inside a table starts a few mm above it, a target in
+  // a cavity starts at the nearest way out); if that does not settle, straight up in doubling
+  // steps from 1 cm.
+  const size_t n = model_.bodies.size();
+  const double want = params_.start_clearance;
+  *shift = Vec3::Zero();
+  // Most-needed push (m, along n_W) of any body, 0 when every body is free.
+  auto worst = [&](const Vec3& offset, Vec3* n_W) {
+    double need = 0.0;
+    for (size_t b = 0; b < n; ++b) {
+      Pose Xb = (*X)[b];
+      Xb.p += offset;
+      for (int o = 0; o < collision_.objectCount(); ++o) {
+        Vec3 nb;
+        const double d = collision_.signedDistance(o, model_.bodies[b].shape, Xb, want, &nb);
+        if (d < want && want - d > need) {
+          need = want - d;
+          *n_W = nb;
+        }
+      }
+    }
+    return need;
+  };
+  Vec3 offset = Vec3::Zero(), n_W = Vec3::UnitZ();
+  for (int it = 0; it < 16; ++it) {
+    const double need = worst(offset, &n_W);
+    if (need <= 0.0) {
+      *shift = offset;
+      return true;
+    }
+    if (!n_W.allFinite() || n_W.norm() < 0.5) break;
+    offset += n_W.normalized() * (need + 0.5 * want);
+  }
+  for (double h = 0.01; h <= 4.0; h *= 2.0) {
+    Vec3 unused;
+    if (worst(Vec3(0, 0, h), &unused) <= 0.0) {
+      *shift = Vec3(0, 0, h);
+      return true;
+    }
+  }
+  return false;
+}
+
 bool HandSolver::start(const HandInput& in) {
   // Start pose: the targets, with undriven or invalid ones taken from the model's rest pose
-  // relative to the palm (body 0) target.
+  // relative to the palm (body 0) target; where that is occupied, the nearest free translation
+  // of it (freeStart), from which the normal steps (with CCD) bring the hand to the surface.
   const size_t n = model_.bodies.size();
   if (!isValidPose(in.targets[0])) return false;
   const Pose X_WM = in.targets[0] * model_.bodies[0].X_MB_rest.inverse();
@@ -128,27 +174,15 @@ bool HandSolver::start(const HandInput& in) {
     const bool driven = !in.has_target || in.has_target[b];
     X_start_[b] = driven && isValidPose(in.targets[b]) ? in.targets[b] : rest[b];
   }
-  auto free = [&](const Vec3& lift) {
-    for (size_t b = 0; b < n; ++b) {
-      Pose X = X_start_[b];
-      X.p += lift;
-      if (collision_.clearance(model_.bodies[b].shape, X, params_.start_clearance) < params_.start_clearance)
-        return false;
-    }
-    return true;
-  };
-  Vec3 lift = Vec3::Zero();
-  if (!free(lift)) {
-    bool found = false;
-    for (double h = 0.01; h <= 4.0 && !found; h *= 2.0) {
-      lift = Vec3(0, 0, h);
-      found = free(lift);
-    }
-    if (!found) return false;  // nowhere free within 4 m above: stay unstarted (reported)
+  Vec3 shift;
+  if (!freeStart(&X_start_, &shift)) return false;  // nowhere free: stay unstarted (reported)
+  if (shift.squaredNorm() > 0.0) {
     proposal_.lifted_start = true;
     ++counters_.lifted_starts;
+    if (trace_ >= 1)
+      std::fprintf(stderr, "trace: start moved by (%.4f, %.4f, %.4f) m to be free\n", shift.x(), shift.y(), shift.z());
   }
-  for (Pose& X : X_start_) X.p += lift;
+  for (Pose& X : X_start_) X.p += shift;
   stepper_->reset(X_start_);
   started_ = true;
   last_errors_ = jointErrors(model_, X_start_.data());
@@ -195,7 +229,8 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
 // their whole motion: one blocked fingertip does not stop the hand), then the joints re-closed
 // against the contacts found there. The re-closing moves bodies too, so it is swept as well; if
 // it hits, every body goes back to TOC_min instead (Algorithm 1) and the joints are re-closed
-// from there. Either way every motion that reaches the result was swept.
+// from there. Either way every motion that reaches the result was swept, and every result has
+// closed joints.
 void HandSolver::clip(double toc_min) {
   const size_t n = model_.bodies.size();
   auto reclose = [&]() {
@@ -259,6 +294,7 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
   si.targets = in.targets;
   si.has_target = in.has_target;
   bool inside = false;
+  double last_free_scale = 1.0, last_toc = 1.0;
   // Rounds of contacts -> Gauss step -> sweep (METHOD.md §2 steps 2-5). A clipped round moves the
   // hand to its TOC (Algorithm 1), re-closes the joints against the contacts found there, and the
   // next round solves the rest of the way towards the same targets from that pose: a body that
@@ -273,10 +309,10 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     const StepReport& sr = stepper_->step(si);
     ++p.substeps;
     if (trace_ >= 1)
-      std::fprintf(stderr, "trace: frame %llu round %d status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu\n",
+      std::fprintf(stderr, "trace: frame %llu round %d status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu scale %.3g\n",
                    static_cast<unsigned long long>(frame), p.substeps, static_cast<int>(sr.solve.status),
                    sr.solve.kkt_residual, sr.projection_iterations, sr.joint_errors.gap, sr.rows, sr.flags,
-                   contacts_.size());
+                   contacts_.size(), sr.motion_scale);
     p.times.assembly_us += sr.times.coupling_us + sr.times.assembly_us;
     p.times.solve_us += sr.times.solve_us;
     p.times.integrate_us += sr.times.integrate_us + sr.times.project_us;
@@ -298,14 +334,27 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     t0 = Clock::now();
     const double toc = sweepLastMotion(&inside);
     p.times.ccd_us += usSince(t0);
-    if (!(toc < 1.0)) break;
+    const double free_scale = sr.free_motion_scale;
+    const bool progressing = p.substeps == 1 || free_scale > 1.25 * last_free_scale;
+    last_free_scale = free_scale;
+    if (!(toc < 1.0)) {
+      // Not clipped. A motion the clamp shortened (StepParams::max_step_*: the rows are linear in
+      // the motion) goes on in the next round from here, the rest of the way to the targets, as
+      // long as the rest shrinks (a hand whose targets sit deep inside an object asks for the
+      // same clamped motion every round: no use going on).
+      if (free_scale < 1.0 && progressing && p.substeps < params_.max_substeps) continue;
+      break;
+    }
+    // Two rounds in a row clipped at once: the contacts found at the first did not open a way.
+    const bool stuck_round = toc < 1e-3 && last_toc < 1e-3;
+    last_toc = toc;
     p.clipped = true;
     p.toc = std::min(p.toc, toc);
     t0 = Clock::now();
     clip(toc);
     p.joint_errors = stepper_->lastReport().joint_errors;
     p.times.integrate_us += usSince(t0);
-    if (p.substeps >= params_.max_substeps) break;
+    if (p.substeps >= params_.max_substeps || stuck_round) break;
   }
   p.started_inside = inside;
   last_errors_ = p.joint_errors;

@@ -37,7 +37,8 @@ inline StepParams pipelineStepParams() {
   StepParams p;
   p.max_step_translation = 0.03;
   p.max_step_rotation = 0.25;
-  p.max_step_rotation_in_contact = 0.05;
+  p.max_step_rotation_in_contact = 0.25;
+  p.clamp_contact_bodies_apart = true;
   return p;
 }
 
@@ -207,6 +208,8 @@ class HandSolver {
 
  private:
   bool start(const HandInput& in);
+  /// The nearest free rigid translation of the poses X (shift; zero when X is free already).
+  bool freeStart(std::vector<Pose>* X, Vec3* shift) const;
   void generateContacts(const HandInput& in);
   /// TOC_min of the stepper's last motion (previous -> current poses) against the scene; each
   /// body's own TOC in body_toc_.

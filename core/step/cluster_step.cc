@@ -139,7 +139,38 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
   // that no body is asked to move more than max_step_translation / max_step_rotation in one
   // step. The contact rows are linear in the motion; their error grows with the square of the
   // rotation, and a target far inside an object would otherwise ask for it every step.
-  {
+  if (params_.clamp_contact_bodies_apart) {
+    // Bodies near a contact are clamped each on its own (their rows hold them anyway), so that
+    // one finger pressing towards a target deep inside an object does not slow the free ones;
+    // the free bodies share one scale.
+    const double dt2k = dt2;
+    near_.assign(static_cast<size_t>(n), 0);
+    for (int i = 0; i < nc; ++i) {
+      const Contact& c = in.contacts[i];
+      if (c.body >= 0 && c.body < n && c.distance < params_.contact_rotation_distance) near_[static_cast<size_t>(c.body)] = 1;
+    }
+    auto limit = [&](int b, double max_rot) {
+      const Vec6& zu = qp_.unconstrained(b);
+      const double trans = zu.head<3>().norm() * dt2k, rot = zu.tail<3>().norm() * dt2k;
+      double s = 1.0;
+      if (trans > params_.max_step_translation) s = std::min(s, params_.max_step_translation / trans);
+      if (rot > max_rot) s = std::min(s, max_rot / rot);
+      return s;
+    };
+    double free_scale = 1.0;
+    for (int b = 0; b < n; ++b)
+      if (!near_[static_cast<size_t>(b)]) free_scale = std::min(free_scale, limit(b, params_.max_step_rotation));
+    double smallest = free_scale;
+    for (int b = 0; b < n; ++b) {
+      double s = free_scale;
+      if (near_[static_cast<size_t>(b)])
+        s = std::min(s, limit(b, std::min(params_.max_step_rotation, params_.max_step_rotation_in_contact)));
+      if (s < 1.0) qp_.unconstrained(b) *= s;
+      smallest = std::min(smallest, s);
+    }
+    report_.motion_scale = smallest;
+    report_.free_motion_scale = free_scale;
+  } else {
     double scale = 1.0;
     const double dt2k = dt2;
     for (int b = 0; b < n; ++b) {
@@ -162,6 +193,7 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
     if (scale < 1.0) {
       for (int b = 0; b < n; ++b) qp_.unconstrained(b) *= scale;
       report_.motion_scale = scale;
+      report_.free_motion_scale = scale;
     }
   }
   const auto t1 = Clock::now();

@@ -56,6 +56,10 @@ struct StepParams {
   /// rotation about the body origin bulges ≈ θ² r / 8 off the chord; the pipeline sets 0.05 rad.
   double max_step_rotation_in_contact = std::numeric_limits<double>::infinity();
   double contact_rotation_distance = 0.005;
+  /// true: bodies with a contact closer than contact_rotation_distance are clamped each on its
+  /// own and the others share one scale (a finger pressing into a surface does not slow the
+  /// rest of the hand); false: one scale for every body.
+  bool clamp_contact_bodies_apart = false;
   double projection_tolerance = 1e-10;  ///< m / rad: joints and limits closed to this
   double target_unit_tolerance = 1e-3;  ///< |‖q‖ − 1| above this rejects a target
 
@@ -84,7 +88,8 @@ struct StepReport {
   int projection_iterations = 0;
   JointErrors joint_errors;         ///< after the step
   double contact_violation = 0.0;   ///< m: contact points further in than allowed after the projection
-  double motion_scale = 1.0;        ///< < 1 when the motion clamp scaled the coupling
+  double motion_scale = 1.0;        ///< < 1 when the motion clamp scaled the coupling (smallest)
+  double free_motion_scale = 1.0;   ///< the scale of the bodies away from contacts
   std::uint32_t flags = 0;
   int rejected_targets = 0, rejected_contacts = 0;
 };
@@ -164,6 +169,7 @@ class ClusterStepper {
   ActiveSetSolver exact_;
   PgsSolver pgs_;
   std::vector<int> contact_row_;       // contact i -> row index or -1
+  std::vector<unsigned char> near_;    // per body: a contact within contact_rotation_distance
   std::vector<double> lambda_contacts_;
   // Warm start: keys and λ of the last step, sorted by key.
   std::vector<std::pair<std::uint64_t, double>> warm_prev_;

@@ -20,6 +20,8 @@
 #include <nlohmann/json.hpp>
 
 #include "leap/leap_recording.h"
+#include "source/recording.h"
+#include "pipeline/run_metrics.h"
 #include "leap/retarget.h"
 #include "model/hand_model.h"
 #include "physics/physics_world.h"
@@ -32,15 +34,19 @@ namespace {
 using namespace godhand;
 
 const char* kUsage =
-    "usage: godhand-bench --recording FILE [--scene FILE | --mesh FILE[:SIZE_M] ...]\n"
+    "usage: godhand-bench --recording FILE [--scene FILE|none | --mesh FILE[:SIZE_M] ...]\n"
     "                     [--hand-model FILE] [--left-hand-model FILE] [--solver exact|pgs]\n"
-    "                     [--pgs-iterations N] [--frames N] [--no-physics] [--json OUT] [--poses OUT.csv]\n"
-    "                     [--quiet]\n"
+    "                     [--pgs-iterations N] [--substeps N] [--frames N] [--no-physics] [--json OUT]\n"
+    "                     [--poses OUT.csv] [--tracker-pose POSE] [--hand-sides MAP] [--quiet] [--check]\n"
     "\n"
-    "Runs the God-object method in one process, in lock-step over every frame of a Leap Motion\n"
-    "JSON recording, against a scene, and reports what it measured.\n"
-    "  --recording FILE      Leap Motion JSON recording (leapjs-playback formats 0.1 and 1)\n"
-    "  --scene FILE          scene file (protobuf text, idl/scene.proto); default deploy/scenes/default.pbtxt\n"
+    "Runs the God-object method in one process, in lock-step over every frame of a tracker\n"
+    "recording, against a scene, and reports what it measured: penetration, joint gap, and beside\n"
+    "them the plausibility of the motion against a free twin (the same hand and targets in an\n"
+    "empty scene): excess lag, frozen windows, stuck frames (METHOD.md section 5).\n"
+    "  --recording FILE      tracker recording, any supported format (detected by content): Leap\n"
+    "                        Motion JSON, DTrack datagrams (.dtrack), godhand raw recordings\n"
+    "  --scene FILE|none     scene file (protobuf text, idl/scene.proto); default deploy/scenes/default.pbtxt;\n"
+    "                        none: no objects (the free twin run)\n"
     "  --mesh FILE[:SIZE_M]  ad-hoc static scene instead: each mesh (OBJ/STL) scaled uniformly so its\n"
     "                        largest extent is SIZE_M (default 0.15) and centred on the recording's\n"
     "                        mean palm position (repeatable)\n"
@@ -51,13 +57,22 @@ const char* kUsage =
     "  --no-physics          dynamic objects stay put (no Bullet)\n"
     "  --physics-hz N        Bullet's internal step rate (default 240; each frame takes ceil(rate/fps) substeps)\n"
     "  --json OUT            write the report as JSON\n"
-    "  --poses OUT.csv       write every God object's world pose every frame\n"
+    "  --poses OUT.csv       write every God object's world pose every frame, and its target's\n"
+    "                        (columns tpx..tqz, empty when the body has no target that frame)\n"
+    "  --substeps N          solve -> sweep rounds per frame (default 4)\n"
+    "  --contact-rotation R  most a body within 5 mm of a contact turns per frame, rad\n"
+    "  --max-rotation R, --max-translation M  most any body turns (rad) / moves (m) per frame\n"
+    "  --contacts-per-pair K contacts kept per (God object, scene object) (default 8)\n"
+    "  --tracker-pose POSE   tracker to world: x,y,z[,rx,ry,rz degrees | ,qw,qx,qy,qz] (default identity)\n"
+    "  --hand-sides MAP      tracker hand id -> side, e.g. 0:left,1:right (DTrack)\n"
     "  --quiet               no progress lines\n"
-    "  --check               exit 1 unless penetration <= margin, joint gap <= 1e-6 m and no solver failures\n"
+    "  --check               exit 1 unless penetration <= margin, joint gap <= 1e-6 m, no solver failures,\n"
+    "                        every hand started and was not held in most of its frames, no stuck frame\n"
+    "                        and frozen windows <= 5 % of the moving windows\n"
     "Exit status: 0 ok, 1 --check failed, 2 bad arguments or input (one line on stderr).\n";
 
 struct Args {
-  std::string recording, scene, json, poses;
+  std::string recording, scene, json, poses, tracker_pose, hand_sides;
   std::vector<std::string> meshes;
   std::string right_model = std::string(GODHAND_DEPLOY_DIR) + "/models/hand16_right.pbtxt";
   std::string left_model = std::string(GODHAND_DEPLOY_DIR) + "/models/hand16_left.pbtxt";
@@ -66,6 +81,10 @@ struct Args {
   long frames = -1;
   int physics_hz = 240;
   int substeps = PipelineParams{}.max_substeps;
+  double contact_rotation = PipelineParams{}.step.max_step_rotation_in_contact;
+  double max_rotation = PipelineParams{}.step.max_step_rotation;
+  int per_pair = PipelineParams{}.contacts.per_pair;
+  double max_translation = PipelineParams{}.step.max_step_translation;
   bool physics = true, quiet = false, check = false;
 };
 
@@ -80,6 +99,15 @@ long parseCount(const std::string& flag, const std::string& v, long lo, long hi)
   const long x = std::strtol(v.c_str(), &end, 10);
   if (v.empty() || *end != '\0' || errno != 0 || x < lo || x > hi)
     fail(flag + ": expected an integer in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got '" + v + "'");
+  return x;
+}
+
+double parseDouble(const std::string& flag, const std::string& v, double lo, double hi) {
+  char* end = nullptr;
+  errno = 0;
+  const double x = std::strtod(v.c_str(), &end);
+  if (v.empty() || *end != '\0' || errno != 0 || !(x >= lo && x <= hi))
+    fail(flag + ": expected a number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got '" + v + "'");
   return x;
 }
 
@@ -101,6 +129,12 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--left-hand-model") a.left_model = value();
     else if (f == "--json") a.json = value();
     else if (f == "--poses") a.poses = value();
+    else if (f == "--tracker-pose") a.tracker_pose = value();
+    else if (f == "--contact-rotation") a.contact_rotation = parseDouble(f, value(), 1e-6, 10.0);
+    else if (f == "--max-rotation") a.max_rotation = parseDouble(f, value(), 1e-6, 10.0);
+    else if (f == "--contacts-per-pair") a.per_pair = static_cast<int>(parseCount(f, value(), 1, 64));
+    else if (f == "--max-translation") a.max_translation = parseDouble(f, value(), 1e-6, 100.0);
+    else if (f == "--hand-sides") a.hand_sides = value();
     else if (f == "--solver") {
       const std::string s = value();
       if (s == "exact") a.solver = SolverKind::Exact;
@@ -135,13 +169,16 @@ int main(int argc, char** argv) {
   const Args args = parseArgs(argc, argv);
 
   // Inputs: recording, models, scene. Any problem: one line, exit 2.
-  leap::Recording rec;
+  bridges::LoadedRecording rec;
   HandModel right, left;
   Scene scene;
   try {
-    rec = leap::Recording::load(args.recording);
+    bridges::SourceOptions so;
+    if (!args.tracker_pose.empty()) so.X_WT = bridges::parsePose(args.tracker_pose);
+    if (!args.hand_sides.empty()) so.hand_sides = bridges::parseHandSides(args.hand_sides);
+    rec = bridges::loadRecording(args.recording, so);
   } catch (const std::exception& e) { fail(e.what()); }
-  if (rec.frames().empty()) fail(args.recording + ": no usable frames");
+  if (rec.frames.empty()) fail(args.recording + ": no usable frames (" + rec.rejections + ")");
   try {
     right = HandModel::loadFile(args.right_model);
     left = HandModel::loadFile(args.left_model);
@@ -150,7 +187,9 @@ int main(int argc, char** argv) {
     if (!args.meshes.empty()) {
       std::vector<MeshSpec> specs;
       for (const std::string& m : args.meshes) specs.push_back(parseMeshSpec(m));
-      scene = meshScene(specs, rec.meanPalmPosition());
+      scene = meshScene(specs, rec.mean_palm_W);
+    } else if (args.scene == "none") {
+      scene.name = "none";
     } else {
       scene = loadScene(args.scene.empty() ? std::string(GODHAND_DEPLOY_DIR) + "/scenes/default.pbtxt" : args.scene);
     }
@@ -158,30 +197,40 @@ int main(int argc, char** argv) {
 
   // One cluster per hand side that the recording contains (right first).
   bool has_side[2] = {false, false};  // 0 right, 1 left
-  for (const leap::TrackerFrame& f : rec.frames())
+  for (const leap::TrackerFrame& f : rec.frames)
     for (const leap::TrackedHand& h : f.hands) has_side[h.right ? 0 : 1] = true;
   std::vector<int> sides;
   std::vector<const HandModel*> models;
+  std::vector<std::string> names;
   for (int s = 0; s < 2; ++s)
     if (has_side[s]) {
       sides.push_back(s);
       models.push_back(s == 0 ? &right : &left);
+      names.push_back(s == 0 ? "right" : "left");
     }
-  if (sides.empty()) fail(args.recording + ": no tracked hands");
+  if (sides.empty()) fail(args.recording + ": no tracked hands (" + rec.rejections + ")");
 
-  const double rate = rec.meanFrameRate();
-  if (!(rate > 1.0 && rate < 10000.0)) fail(args.recording + ": implausible frame rate " + std::to_string(rate));
+  const double rate = rec.mean_rate_hz;
+  if (!(rate > 1.0 && rate < 10000.0))
+    fail(args.recording + ": frame rate " + std::to_string(rate) +
+         " Hz from the timestamps is outside (1, 10000) Hz (timestamps in the wrong unit, repeated or out of order?)");
   PipelineParams params;
   params.step.dt = 1.0 / rate;
   params.step.solver = args.solver;
   params.step.pgs.sweeps = args.pgs_iterations;
   params.simulate = args.physics;
   params.max_substeps = args.substeps;
+  params.step.max_step_rotation_in_contact = args.contact_rotation;
+  params.step.max_step_rotation = args.max_rotation;
+  params.step.max_step_translation = args.max_translation;
+  params.contacts.per_pair = args.per_pair;
   std::unique_ptr<Pipeline> pipe;
+  std::unique_ptr<RunMetrics> metrics;
   std::vector<leap::Retargeter> retarget;
   try {
     const PhysicsParams physics = physicsParamsFor(rate, args.physics_hz);
     pipe = std::make_unique<Pipeline>(scene, models, params, physics);
+    metrics = std::make_unique<RunMetrics>(scene, models, names, params);
     for (const HandModel* m : models) retarget.emplace_back(*m);
   } catch (const std::exception& e) { fail(e.what()); }
 
@@ -189,25 +238,23 @@ int main(int argc, char** argv) {
   if (!args.poses.empty()) {
     poses_out.open(args.poses);
     if (!poses_out) fail(args.poses + ": cannot write");
-    poses_out << "frame,hand,body,shape,radius,half_length,hx,hy,hz,px,py,pz,qw,qx,qy,qz\n";
+    poses_out << "frame,hand,body,shape,radius,half_length,hx,hy,hz,px,py,pz,qw,qx,qy,qz,tpx,tpy,tpz,tqw,tqx,tqy,tqz\n";
     poses_out.precision(17);
   }
 
-  const size_t n_frames = args.frames > 0 ? std::min(rec.frames().size(), static_cast<size_t>(args.frames)) : rec.frames().size();
+  const size_t n_frames = args.frames > 0 ? std::min(rec.frames.size(), static_cast<size_t>(args.frames)) : rec.frames.size();
   const size_t H = sides.size();
   std::vector<std::vector<Pose>> targets(H);
   std::vector<std::vector<unsigned char>> has(H);
   std::vector<HandInput> inputs(H);
   std::vector<double> step_us, st_contacts, st_assembly, st_solve, st_integrate, st_ccd, st_merge, st_scene;
-  double pen_max = 0, gap_max = 0, free_err_max = 0, kkt_max = 0;
-  std::vector<double> free_err;
+  double kkt_max = 0;
   int contacts_max = 0;
-  long clipped_frames = 0, lifted = 0;
   ResultHash hash;
   const auto t_run = std::chrono::steady_clock::now();
   auto t_progress = t_run;
   for (size_t fi = 0; fi < n_frames; ++fi) {
-    const leap::TrackerFrame& f = rec.frames()[fi];
+    const leap::TrackerFrame& f = rec.frames[fi];
     for (size_t h = 0; h < H; ++h) {
       inputs[h] = HandInput{};
       const leap::TrackedHand* th = nullptr;
@@ -229,72 +276,118 @@ int main(int argc, char** argv) {
     st_merge.push_back(r.times.merge_us);
     st_scene.push_back(r.times.scene_us);
     contacts_max = std::max(contacts_max, r.contacts);
-    // Figures of METHOD.md §5, outside the timed step.
+    // Figures of METHOD.md §5, outside the timed step (core/pipeline/run_metrics.h).
     for (size_t h = 0; h < H; ++h) {
       const HandFrameReport& hr = r.hands[h];
-      if (hr.lifted_start) ++lifted;
-      if (hr.toc < 1.0) ++clipped_frames;
-      if (!hr.started) continue;
-      pen_max = std::max(pen_max, pipe->penetration(static_cast<int>(h)));
-      gap_max = std::max(gap_max, hr.joint_errors.gap);
-      if (hr.tracked) {
-        kkt_max = std::max(kkt_max, hr.kkt);
-        // Free space: no contact of this hand carries force this frame.
-        if (!hr.loaded) {
-          const std::vector<Pose>& X = pipe->poses(static_cast<int>(h));
-          double e = 0;
-          for (size_t b = 0; b < X.size(); ++b)
-            if (has[h][b]) e = std::max(e, (X[b].p - targets[h][b].p).norm());
-          free_err.push_back(e);
-          free_err_max = std::max(free_err_max, e);
-        }
-      }
       const std::vector<Pose>& X = pipe->poses(static_cast<int>(h));
+      HandSample sample;
+      sample.started = hr.started;
+      sample.tracked = hr.tracked;
+      sample.X = hr.started ? X.data() : nullptr;
+      sample.targets = inputs[h].targets;
+      sample.has_target = inputs[h].has_target;
+      sample.loaded = hr.loaded;
+      sample.clipped = hr.clipped;
+      sample.toc = hr.toc;
+      sample.substeps = hr.substeps;
+      sample.joint_gap = hr.joint_errors.gap;
+      metrics->add(static_cast<int>(h), sample, inputs[h], pipe->resolver().collision());
+      if (!hr.started) continue;
+      if (hr.tracked) kkt_max = std::max(kkt_max, hr.kkt);
       const HandModel& m = pipe->model(static_cast<int>(h));
       for (size_t b = 0; b < X.size(); ++b) {
         hash.add(X[b]);
         if (poses_out) {
           const Shape& s = m.bodies[b].shape;
-          poses_out << fi << ',' << (sides[h] == 0 ? "right" : "left") << ',' << m.bodies[b].name << ','
-                    << shapeName(s.type) << ',' << s.radius << ',' << s.half_length << ',' << s.half_extents.x() << ','
-                    << s.half_extents.y() << ',' << s.half_extents.z() << ',' << X[b].p.x() << ',' << X[b].p.y() << ','
-                    << X[b].p.z() << ',' << X[b].q.w() << ',' << X[b].q.x() << ',' << X[b].q.y() << ',' << X[b].q.z()
-                    << '\n';
+          poses_out << fi << ',' << names[h] << ',' << m.bodies[b].name << ',' << shapeName(s.type) << ',' << s.radius
+                    << ',' << s.half_length << ',' << s.half_extents.x() << ',' << s.half_extents.y() << ','
+                    << s.half_extents.z() << ',' << X[b].p.x() << ',' << X[b].p.y() << ',' << X[b].p.z() << ','
+                    << X[b].q.w() << ',' << X[b].q.x() << ',' << X[b].q.y() << ',' << X[b].q.z();
+          if (inputs[h].tracked && has[h][b]) {
+            const Pose& T = targets[h][b];
+            poses_out << ',' << T.p.x() << ',' << T.p.y() << ',' << T.p.z() << ',' << T.q.w() << ',' << T.q.x() << ','
+                      << T.q.y() << ',' << T.q.z() << '\n';
+          } else {
+            poses_out << ",,,,,,,\n";
+          }
         }
       }
     }
     const auto now = std::chrono::steady_clock::now();
     if (!args.quiet && std::chrono::duration<double>(now - t_progress).count() > 2.0) {
       t_progress = now;
-      std::fprintf(stderr, "godhand-bench: frame %zu/%zu, penetration max %.4f mm\n", fi + 1, n_frames, pen_max * 1e3);
+      std::fprintf(stderr, "godhand-bench: frame %zu/%zu\n", fi + 1, n_frames);
     }
   }
   const PipelineCounters& c = pipe->counters();
+  const RunSummary sum = metrics->summary();
+  const HandSummary& all = sum.all;
   const double median = percentile(step_us, 0.5);
   const double hz = median > 0 ? 1e6 / median : 0.0;
+  const double margin = params.step.rows.margin;
 
-  std::printf("godhand-bench: %s, %zu frames at %.1f Hz, %zu hand(s), scene '%s' (%lld God-collision triangles)\n",
-              args.recording.c_str(), n_frames, rate, H, scene.name.c_str(), scene.god_triangles);
+  std::printf("godhand-bench: %s (%s), %zu frames at %.1f Hz, %zu hand(s), scene '%s' (%lld God-collision triangles)\n",
+              args.recording.c_str(), rec.format.c_str(), n_frames, rate, H, scene.name.c_str(), scene.god_triangles);
+  if (!rec.rejections.empty()) std::printf("  recording: %s\n", rec.rejections.c_str());
   for (const SceneObject& o : scene.objects)
     if (!args.meshes.empty())
-      std::printf("  mesh %s: scale %.6g, translation (%.4f, %.4f, %.4f) m\n", o.source.c_str(), o.scale,
-                  o.translation.x(), o.translation.y(), o.translation.z());
-  std::printf("  step: median %.1f us (%.0f Hz), p99 %.1f us, max %.1f us\n", median, hz, percentile(step_us, 0.99),
-              percentile(step_us, 1.0));
+      std::printf("  mesh %s: scale %.6g, then translation (%.4f, %.4f, %.4f) m, placed at (%.4f, %.4f, %.4f) m\n",
+                  o.source.c_str(), o.scale, o.translation.x(), o.translation.y(), o.translation.z(), o.X_WO.p.x(),
+                  o.X_WO.p.y(), o.X_WO.p.z());
+  std::printf("  step (the in-process frame, every hand and the scene): median %.1f us (%.0f Hz), p99 %.1f us, max %.1f us\n",
+              median, hz, percentile(step_us, 0.99), percentile(step_us, 1.0));
   std::printf("  stages (median us): contacts %.1f, assembly %.1f, solve %.1f, integrate %.1f, ccd %.1f, merge %.1f, scene %.1f\n",
               percentile(st_contacts, 0.5), percentile(st_assembly, 0.5), percentile(st_solve, 0.5),
               percentile(st_integrate, 0.5), percentile(st_ccd, 0.5), percentile(st_merge, 0.5), percentile(st_scene, 0.5));
-  std::printf("  penetration max %.4f mm (margin %.3f mm), joint gap max %.2e m, free tracking error max %.2f mm (median %.2f mm)\n",
-              pen_max * 1e3, params.step.rows.margin * 1e3, gap_max, free_err_max * 1e3, percentile(free_err, 0.5) * 1e3);
-  std::printf("  contacts max %d, KKT max %.1e, solver failures %llu, inexact solves %llu, clipped steps %llu, lifted starts %llu, scene push-outs %llu\n",
-              contacts_max, kkt_max, static_cast<unsigned long long>(c.solver_failures),
-              static_cast<unsigned long long>(c.inexact_solves), static_cast<unsigned long long>(c.clipped_steps),
+  std::printf("  penetration max %.4f mm (allowed: the %.3f mm margin), joint gap max %.2e m\n", all.penetration_max_m * 1e3,
+              margin * 1e3, all.joint_gap_max_m);
+  for (const HandSummary& hs : sum.hands)
+    std::printf("  %s hand: excess lag (distance to the free twin beyond what the scene forces) median %.2f p95 %.2f max %.2f mm, "
+                "%llu of %zu frames above 5 mm; frozen %llu of %llu moving windows; stuck %llu frames; "
+                "model error (twin to targets: what the hand model cannot follow) median %.2f max %.2f mm; "
+                "free tracking error (no contact loaded) median %.2f max %.2f mm\n",
+                hs.name.c_str(), hs.excess_lag_m.median * 1e3, hs.excess_lag_m.p95 * 1e3, hs.excess_lag_m.max * 1e3,
+                static_cast<unsigned long long>(hs.lag_above_5mm), hs.excess_lag_m.count,
+                static_cast<unsigned long long>(hs.frozen_windows), static_cast<unsigned long long>(hs.moving_windows),
+                static_cast<unsigned long long>(hs.stuck_frames), hs.model_error_m.median * 1e3, hs.model_error_m.max * 1e3,
+                hs.free_tracking_error_m.median * 1e3, hs.free_tracking_error_m.max * 1e3);
+  std::printf("  clipped %llu hand-frames (TOC < 1e-3 in %llu), solve -> sweep rounds %llu (max %llu in a frame); "
+              "contacts max %d, KKT max %.1e, solver failures %llu, inexact solves %llu, lifted starts %llu, scene push-outs %llu\n",
+              static_cast<unsigned long long>(all.clipped_frames), static_cast<unsigned long long>(all.toc_below_1e3),
+              static_cast<unsigned long long>(all.substeps), static_cast<unsigned long long>(all.substeps_max), contacts_max,
+              kkt_max, static_cast<unsigned long long>(c.solver_failures), static_cast<unsigned long long>(c.inexact_solves),
               static_cast<unsigned long long>(c.lifted_starts), static_cast<unsigned long long>(c.scene_pushouts));
-  std::printf("  result hash %016llx\n", static_cast<unsigned long long>(hash.h));
+  if (!sum.failure.empty()) std::printf("  FAILED RUN: %s\n", sum.failure.c_str());
+  char hex[32];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash.h));
+  if (sum.failure.empty()) std::printf("  result hash %s\n", hex);
 
+  auto spread = [](const Spread& s) { return nlohmann::json{{"median", s.median}, {"p95", s.p95}, {"max", s.max}, {"count", s.count}}; };
+  auto handJson = [&](const HandSummary& hs) {
+    return nlohmann::json{{"frames", hs.frames},
+                          {"tracked", hs.tracked},
+                          {"started", hs.started},
+                          {"not_started", hs.never_started},
+                          {"held", hs.held},
+                          {"penetration_max_m", hs.penetration_max_m},
+                          {"joint_gap_max_m", hs.joint_gap_max_m},
+                          {"excess_lag_m", spread(hs.excess_lag_m)},
+                          {"excess_lag_above_5mm", hs.lag_above_5mm},
+                          {"moving_windows", hs.moving_windows},
+                          {"frozen_windows", hs.frozen_windows},
+                          {"stuck_frames", hs.stuck_frames},
+                          {"model_error_m", spread(hs.model_error_m)},
+                          {"free_tracking_error_m", spread(hs.free_tracking_error_m)},
+                          {"clipped_frames", hs.clipped_frames},
+                          {"toc_below_1e-3", hs.toc_below_1e3},
+                          {"substeps", hs.substeps},
+                          {"substeps_max", hs.substeps_max}};
+  };
   if (!args.json.empty()) {
     nlohmann::json j;
     j["recording"] = args.recording;
+    j["recording_format"] = rec.format;
+    j["recording_rejections"] = rec.rejections;
     j["scene"] = scene.name;
     j["frames"] = n_frames;
     j["hands"] = H;
@@ -303,17 +396,29 @@ int main(int argc, char** argv) {
     j["frame_rate_hz"] = rate;
     j["solver"] = args.solver == SolverKind::Exact ? "exact" : "pgs";
     j["physics_hz"] = args.physics ? args.physics_hz : 0;
+    j["max_substeps"] = args.substeps;
     j["step_us"] = {{"median", median}, {"p99", percentile(step_us, 0.99)}, {"max", percentile(step_us, 1.0)}};
     j["hz_median"] = hz;
     j["stages_us"] = {{"contacts", percentile(st_contacts, 0.5)}, {"assembly", percentile(st_assembly, 0.5)},
                       {"solve", percentile(st_solve, 0.5)},       {"integrate", percentile(st_integrate, 0.5)},
                       {"ccd", percentile(st_ccd, 0.5)},           {"merge", percentile(st_merge, 0.5)},
                       {"scene", percentile(st_scene, 0.5)}};
-    j["penetration_max_m"] = pen_max;
-    j["margin_m"] = params.step.rows.margin;
-    j["joint_gap_max_m"] = gap_max;
-    j["free_tracking_error_max_m"] = free_err_max;
-    j["free_tracking_error_median_m"] = percentile(free_err, 0.5);
+    j["penetration_max_m"] = all.penetration_max_m;
+    j["margin_m"] = margin;
+    j["joint_gap_max_m"] = all.joint_gap_max_m;
+    j["free_tracking_error_max_m"] = all.free_tracking_error_m.max;
+    j["free_tracking_error_median_m"] = all.free_tracking_error_m.median;
+    j["excess_lag_m"] = spread(all.excess_lag_m);
+    j["excess_lag_above_5mm"] = all.lag_above_5mm;
+    j["moving_windows"] = all.moving_windows;
+    j["frozen_windows"] = all.frozen_windows;
+    j["stuck_frames"] = all.stuck_frames;
+    j["model_error_m"] = spread(all.model_error_m);
+    j["clipped_frames"] = all.clipped_frames;
+    j["toc_below_1e-3"] = all.toc_below_1e3;
+    j["substeps"] = all.substeps;
+    j["per_hand"] = nlohmann::json::object();
+    for (const HandSummary& hs : sum.hands) j["per_hand"][hs.name] = handJson(hs);
     j["contacts_max"] = contacts_max;
     j["kkt_residual_max"] = kkt_max;
     j["solver_failures"] = c.solver_failures;
@@ -323,25 +428,34 @@ int main(int argc, char** argv) {
     j["started_inside"] = c.started_inside;
     j["scene_pushouts"] = c.scene_pushouts;
     j["forces_clamped"] = c.forces_clamped;
-    char hex[32];
-    std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash.h));
-    j["result_hash"] = hex;
-    if (!args.meshes.empty()) {
-      nlohmann::json meshes = nlohmann::json::array();
-      for (const SceneObject& o : scene.objects)
-        meshes.push_back({{"mesh", o.source}, {"scale", o.scale},
-                          {"translation_m", {o.translation.x(), o.translation.y(), o.translation.z()}}});
-      j["meshes"] = meshes;
+    if (sum.failure.empty()) j["result_hash"] = hex;
+    else j["failure"] = sum.failure;
+    // Every object's placement: file coordinates -> world, p_W = scale R p_file + t (R, t the
+    // world pose applied after the scale and the --mesh centring translation).
+    nlohmann::json objects = nlohmann::json::array();
+    for (const SceneObject& o : scene.objects) {
+      const Vec3 t = o.X_WO.p + o.X_WO.q * o.translation;
+      objects.push_back({{"id", o.id},
+                         {"source", o.source},
+                         {"scale", o.scale},
+                         {"rotation_wxyz", {o.X_WO.q.w(), o.X_WO.q.x(), o.X_WO.q.y(), o.X_WO.q.z()}},
+                         {"translation_m", {t.x(), t.y(), t.z()}},
+                         {"dynamic", o.mass > 0.0}});
     }
+    j["objects"] = objects;
+    if (!args.meshes.empty()) j["meshes"] = objects;
     std::ofstream out(args.json);
     out << j.dump(2) << "\n";
     if (!out) fail(args.json + ": cannot write");
   }
   if (args.check) {
-    const bool ok = pen_max <= params.step.rows.margin && gap_max <= 1e-6 && c.solver_failures == 0;
-    std::printf("check: %s (penetration <= %.1e m, joint gap <= 1e-6 m, no solver failures)\n", ok ? "ok" : "FAILED",
-                params.step.rows.margin);
+    const bool frozen_ok = all.frozen_windows * 20 <= std::max<std::uint64_t>(all.moving_windows, 1);
+    const bool ok = all.penetration_max_m <= margin && all.joint_gap_max_m <= 1e-6 && c.solver_failures == 0 &&
+                    sum.failure.empty() && all.stuck_frames == 0 && frozen_ok;
+    std::printf("check: %s (penetration <= %.1e m, joint gap <= 1e-6 m, no solver failures, every hand started and not held, "
+                "no stuck frame, frozen windows <= 5 %%)\n",
+                ok ? "ok" : "FAILED", margin);
     return ok ? 0 : 1;
   }
-  return 0;
+  return sum.failure.empty() ? 0 : 1;
 }

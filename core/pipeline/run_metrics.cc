@@ -1,0 +1,181 @@
+#include "pipeline/run_metrics.h"
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <stdexcept>
+
+#include "math/stats.h"
+
+namespace godhand {
+
+namespace {
+Spread spreadOf(const std::vector<double>& v) {
+  Spread s;
+  s.count = v.size();
+  if (v.empty()) return s;
+  s.median = percentile(v, 0.5);
+  s.p95 = percentile(v, 0.95);
+  s.max = *std::max_element(v.begin(), v.end());
+  return s;
+}
+double maxBodyDistance(const std::vector<Pose>& a, const std::vector<Pose>& b) {
+  double m = 0.0;
+  for (size_t i = 0; i < a.size() && i < b.size(); ++i) m = std::max(m, (a[i].p - b[i].p).norm());
+  return m;
+}
+bool driven(const HandSample& s, size_t b) { return !s.has_target || s.has_target[b]; }
+}  // namespace
+
+struct RunMetrics::Hand {
+  HandSummary sum;
+  const HandModel* model = nullptr;
+  std::unique_ptr<HandSolver> twin;
+  std::uint64_t frame = 0;
+  std::vector<double> free_err, model_err, lag;
+  // The last kWindow + 1 frames in which both the God hand and its twin existed (-1: a gap).
+  std::deque<std::pair<std::vector<Pose>, std::vector<Pose>>> window;
+  std::vector<Pose> X_prev;  // God poses of the previous frame (empty: none)
+};
+
+RunMetrics::RunMetrics(const Scene& scene, std::vector<const HandModel*> models, std::vector<std::string> names,
+                       const PipelineParams& params, bool twin)
+    : params_(params) {
+  (void)scene;
+  if (models.size() != names.size()) throw std::invalid_argument("run metrics: one name per hand model");
+  for (size_t h = 0; h < models.size(); ++h) {
+    if (!models[h]) throw std::invalid_argument("run metrics: null hand model");
+    auto hand = std::make_unique<Hand>();
+    hand->sum.name = names[h];
+    hand->model = models[h];
+    if (twin) hand->twin = std::make_unique<HandSolver>(empty_, *models[h], params_);
+    hands_.push_back(std::move(hand));
+  }
+}
+
+RunMetrics::~RunMetrics() = default;
+
+void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const CollisionWorld& world) {
+  Hand& hand = *hands_.at(static_cast<size_t>(h));
+  HandSummary& sum = hand.sum;
+  const HandModel& m = *hand.model;
+  const size_t n = m.bodies.size();
+  ++hand.frame;
+  ++sum.frames;
+  if (s.tracked) ++sum.tracked;
+  if (s.held) ++sum.held;
+  if (s.tracked && !s.started) ++sum.never_started;
+  if (s.clipped) ++sum.clipped_frames;
+  if (s.clipped && s.toc < MetricThresholds::kTinyToc) ++sum.toc_below_1e3;
+  sum.substeps += static_cast<std::uint64_t>(std::max(0, s.substeps));
+  sum.substeps_max = std::max<std::uint64_t>(sum.substeps_max, static_cast<std::uint64_t>(std::max(0, s.substeps)));
+
+  // The twin takes the same input whatever the God hand did with it.
+  const std::vector<Pose>* twin = nullptr;
+  if (hand.twin) {
+    hand.twin->step(input, hand.frame);
+    if (hand.twin->started()) twin = &hand.twin->stepper().poses();
+  }
+  if (!s.started || !s.X) {
+    hand.X_prev.clear();
+    hand.window.clear();
+    return;
+  }
+  ++sum.started;
+  const std::vector<Pose> X(s.X, s.X + n);
+  double pen = 0.0;
+  for (size_t b = 0; b < n; ++b) pen = std::max(pen, world.penetration(m.bodies[b].shape, X[b]));
+  sum.penetration_max_m = std::max(sum.penetration_max_m, pen);
+  sum.joint_gap_max_m = std::max(sum.joint_gap_max_m, s.joint_gap);
+
+  const bool has_targets = s.tracked && s.targets;
+  if (has_targets) {
+    double to_target = 0.0;
+    for (size_t b = 0; b < n; ++b)
+      if (driven(s, b) && s.targets[b].p.allFinite()) to_target = std::max(to_target, (X[b].p - s.targets[b].p).norm());
+    if (!s.loaded) hand.free_err.push_back(to_target);
+    // Stuck: not moving, away from the targets, and nothing in the way of going straight there.
+    if (!s.held && !hand.X_prev.empty() && maxBodyDistance(X, hand.X_prev) < MetricThresholds::kGodStill &&
+        to_target > MetricThresholds::kAwayFromTarget) {
+      bool path_free = true;
+      for (size_t b = 0; b < n && path_free; ++b) {
+        if (!driven(s, b) || !isValidPose(s.targets[b], 1e-6)) continue;
+        const geo::SweepResult r = world.sweep(m.bodies[b].shape, X[b], s.targets[b], params_.sweep);
+        path_free = !r.hit && !r.started_inside && r.toc >= 1.0;
+      }
+      if (path_free) ++sum.stuck_frames;
+    }
+  }
+  if (twin && has_targets) {
+    double model_err = 0.0, depth = 0.0;
+    for (size_t b = 0; b < n; ++b) {
+      if (driven(s, b) && s.targets[b].p.allFinite())
+        model_err = std::max(model_err, ((*twin)[b].p - s.targets[b].p).norm());
+      depth = std::max(depth, world.penetration(m.bodies[b].shape, (*twin)[b]));
+    }
+    hand.model_err.push_back(model_err);
+    const double e = maxBodyDistance(X, *twin) - depth;
+    hand.lag.push_back(e);
+    if (e > MetricThresholds::kLagAbove) ++sum.lag_above_5mm;
+    hand.window.emplace_back(X, *twin);
+    if (hand.window.size() > static_cast<size_t>(MetricThresholds::kWindow) + 1) hand.window.pop_front();
+    if (hand.window.size() == static_cast<size_t>(MetricThresholds::kWindow) + 1) {
+      const auto& a = hand.window.front();
+      const auto& z = hand.window.back();
+      if (maxBodyDistance(z.second, a.second) > MetricThresholds::kTwinMoves) {
+        ++sum.moving_windows;
+        if (maxBodyDistance(z.first, a.first) < MetricThresholds::kGodStill) ++sum.frozen_windows;
+      }
+    }
+  } else {
+    hand.window.clear();
+  }
+  hand.X_prev = X;
+}
+
+RunSummary RunMetrics::summary() const {
+  RunSummary out;
+  std::vector<double> free_all, model_all, lag_all;
+  HandSummary& all = out.all;
+  all.name = "all";
+  for (const auto& hp : hands_) {
+    const Hand& hand = *hp;
+    HandSummary s = hand.sum;
+    s.free_tracking_error_m = spreadOf(hand.free_err);
+    s.model_error_m = spreadOf(hand.model_err);
+    s.excess_lag_m = spreadOf(hand.lag);
+    out.hands.push_back(s);
+    free_all.insert(free_all.end(), hand.free_err.begin(), hand.free_err.end());
+    model_all.insert(model_all.end(), hand.model_err.begin(), hand.model_err.end());
+    lag_all.insert(lag_all.end(), hand.lag.begin(), hand.lag.end());
+    all.frames += s.frames;
+    all.tracked += s.tracked;
+    all.started += s.started;
+    all.held += s.held;
+    all.never_started += s.never_started;
+    all.penetration_max_m = std::max(all.penetration_max_m, s.penetration_max_m);
+    all.joint_gap_max_m = std::max(all.joint_gap_max_m, s.joint_gap_max_m);
+    all.lag_above_5mm += s.lag_above_5mm;
+    all.moving_windows += s.moving_windows;
+    all.frozen_windows += s.frozen_windows;
+    all.stuck_frames += s.stuck_frames;
+    all.clipped_frames += s.clipped_frames;
+    all.toc_below_1e3 += s.toc_below_1e3;
+    all.substeps += s.substeps;
+    all.substeps_max = std::max(all.substeps_max, s.substeps_max);
+    if (out.failure.empty() && s.tracked > 0) {
+      if (s.started == 0)
+        out.failure = "hand '" + s.name + "' never started (" + std::to_string(s.tracked) +
+                      " tracked frames; every start pose was occupied: is the scene enclosing the tracking volume?)";
+      else if (2 * (s.held + s.never_started) > s.tracked)
+        out.failure = "hand '" + s.name + "' was held or not started in " + std::to_string(s.held + s.never_started) +
+                      " of its " + std::to_string(s.tracked) + " tracked frames";
+    }
+  }
+  all.free_tracking_error_m = spreadOf(free_all);
+  all.model_error_m = spreadOf(model_all);
+  all.excess_lag_m = spreadOf(lag_all);
+  return out;
+}
+
+}  // namespace godhand

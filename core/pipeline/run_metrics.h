@@ -1,0 +1,113 @@
+// The quality figures of a run (METHOD.md §5), defined once for every report: godhand-bench and
+// godhand-launch feed the same RunMetrics with what a frame produced and print/write its summary.
+//
+// Plausibility (a God hand that is penetration-free because it froze is a failure):
+//   free twin      the same hand model driven by the same targets against an empty scene (a
+//                  HandSolver of its own, stepped here): the model's best rendition of the
+//                  targets. What the model cannot represent (limits, twist, palm offset) is the
+//                  twin's distance to the targets: `model_error`, reported apart.
+//   excess lag     per frame and hand: E = max_b |p_god,b − p_twin,b| − max_b depth_b(twin), the
+//                  depth measured exactly against the scene's reference meshes. An ideal God hand
+//                  scores ≤ ~0 (where the twin is outside it coincides with it, where the twin
+//                  sinks d it sits about d away). Median / p95 / max, frames above 5 mm.
+//   frozen         windows of 5 frames in which the twin moves > 2 mm but the God hand < 0.05 mm.
+//   stuck frames   frames in which the God hand moves < 0.05 mm although it is > 1 mm from its
+//                  targets and the straight motion of every driven body to its target is free
+//                  (swept against the scene as it is).
+// Also per hand: penetration (max), joint gap (max), free tracking error (God to target while
+// no contact carries force), frames clipped, frames whose TOC < 1e-3, solve -> sweep rounds.
+//
+// No I/O: the caller formats the Summary (services/bench, services/launch).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "model/hand_model.h"
+#include "pipeline/collision_world.h"
+#include "pipeline/stages.h"
+#include "scene/scene.h"
+
+namespace godhand {
+
+/// What one frame produced for one hand, as any report sees it.
+struct HandSample {
+  bool started = false;      ///< the God hand exists
+  bool tracked = false;      ///< targets were given this frame
+  bool held = false;         ///< no new result this frame (live: the last pose again)
+  const Pose* X = nullptr;   ///< God-object poses (model body order), nullptr if none
+  const Pose* targets = nullptr;              ///< when tracked
+  const unsigned char* has_target = nullptr;  ///< per body, nullptr = all
+  bool loaded = false;       ///< some contact carried force
+  bool clipped = false;
+  double toc = 1.0;
+  int substeps = 0;
+  double joint_gap = 0.0;    ///< m
+};
+
+/// Median, p95, max of a sample (0 for none) and its size.
+struct Spread {
+  double median = 0, p95 = 0, max = 0;
+  std::size_t count = 0;
+};
+
+struct HandSummary {
+  std::string name;
+  std::uint64_t frames = 0, tracked = 0, started = 0, held = 0;
+  std::uint64_t never_started = 0;     ///< tracked frames before (or without) a start
+  double penetration_max_m = 0, joint_gap_max_m = 0;
+  Spread free_tracking_error_m;        ///< God to targets, frames without load
+  Spread model_error_m;                ///< twin to targets: what the model cannot represent
+  Spread excess_lag_m;                 ///< see above
+  std::uint64_t lag_above_5mm = 0;
+  std::uint64_t moving_windows = 0, frozen_windows = 0;
+  std::uint64_t stuck_frames = 0;
+  std::uint64_t clipped_frames = 0, toc_below_1e3 = 0;
+  std::uint64_t substeps = 0, substeps_max = 0;
+};
+
+struct RunSummary {
+  std::vector<HandSummary> hands;
+  HandSummary all;                     ///< every hand's frames together
+  /// Why the run is not a plausible run of every hand (empty if it is): a hand that never
+  /// started, or that was held or unstarted in most of its tracked frames.
+  std::string failure;
+};
+
+class RunMetrics {
+ public:
+  /// models/names: one per hand, in the report's order. twin = false: no free twin (no excess
+  /// lag, frozen windows or model error; used where the caller has no targets).
+  RunMetrics(const Scene& scene, std::vector<const HandModel*> models, std::vector<std::string> names,
+             const PipelineParams& params, bool twin = true);
+  ~RunMetrics();
+
+  /// One frame of hand h. `input` is what the God hand was driven with (the twin gets the
+  /// same); `world` is the scene as this frame's result was resolved against (penetration,
+  /// twin depth, stuck sweeps).
+  void add(int hand, const HandSample& sample, const HandInput& input, const CollisionWorld& world);
+
+  RunSummary summary() const;
+  int handCount() const { return static_cast<int>(hands_.size()); }
+
+ private:
+  struct Hand;
+  const Scene empty_{};  // the twins' scene: declared first, destroyed last
+  PipelineParams params_;
+  std::vector<std::unique_ptr<Hand>> hands_;
+};
+
+/// The thresholds of the figures above (one definition; reports quote them).
+struct MetricThresholds {
+  static constexpr double kLagAbove = 5e-3;      ///< m
+  static constexpr double kTwinMoves = 2e-3;     ///< m over the window
+  static constexpr double kGodStill = 5e-5;      ///< m
+  static constexpr int kWindow = 5;              ///< frames
+  static constexpr double kAwayFromTarget = 1e-3;  ///< m
+  static constexpr double kTinyToc = 1e-3;
+};
+
+}  // namespace godhand
