@@ -9,6 +9,8 @@ cases:
                                    rejection counts equal the sender's fault counts, --record's file
                                    replays in lock-step to the same accepted frames
   rejects                          godhand-ingest's bad configurations: one line, exit 2
+  formats DATA_DIR                 lock-step runs through the lab with --check of a .dtrack file, the
+                                   Aria CSV sample and a synthetic script (detected by content)
 
 Every wait has a deadline; nothing is left behind (no process of the domain, no shared-memory
 segment of the run). Only loopback traffic: the sender refuses any other address.
@@ -192,6 +194,25 @@ def case_rejects():
     check(r.returncode == 0 and "dtrack://" in r.stdout and "--duration" in r.stdout, "--help documents the sources")
 
 
+def case_formats(data):
+    cases = [(os.path.join(data, "dtrack", "pinch.dtrack"), None, 307),
+             (os.path.join(data, "aria", "pinch_head_v2.csv"), None, 8),
+             (os.path.join(data, "synthetic", "press_slide_lift.txt"), os.path.join(data, "synthetic", "table.pbtxt"), 340)]
+    for rec, scene, frames in cases:
+        report = os.path.join(TMP, "fmt.json")
+        cmd = [os.path.join(BIN, "godhand-launch"), "--domain", DOMAIN, "--lockstep", "--recording", rec, "--check", "--quiet",
+               "--json", report] + (["--scene", scene] if scene else [])
+        print("$ " + " ".join(cmd), flush=True)
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=200)
+        print(r.stdout[-1500:] + r.stderr[-1000:], flush=True)
+        j = json.load(open(report)) if os.path.exists(report) else {}
+        name = os.path.basename(rec)
+        check(r.returncode == 0, f"{name}: lock-step --check passed")
+        check(j.get("frames") == frames, f"{name}: {j.get('frames')} frames == {frames}")
+        check(j.get("penetration_max_m", 1) <= 1e-4, f"{name}: penetration {j.get('penetration_max_m')} m")
+        check(j.get("shm_segments_left", -1) == 0, f"{name}: no shared-memory segment left behind")
+
+
 before = shm()
 try:
     if CASE == "live-dtrack":
@@ -200,6 +221,8 @@ try:
         case_record_replay(*ARGS)
     elif CASE == "rejects":
         case_rejects()
+    elif CASE == "formats":
+        case_formats(*ARGS)
     else:
         print("unknown case " + CASE)
         sys.exit(2)
