@@ -550,14 +550,15 @@ async function caseAbuse() {
   check(churn === 20, `20 clients connected and left (${churn} opened)`);
   check(await bigClosed, 'a 200 KB frame (over the 64 KB limit) closes that connection only');
   check(escape === 404 && escape2 === 404, `paths outside the page are not served (${escape}, ${escape2})`);
-  // The page against the viewer's own count (viewer_stats) over the same 2 s: it got them all.
+  // The page against the viewer's own count (viewer_stats, sent every 0.5 s, so up to 0.5 s old)
+  // over the same 3 s; that it lost none is the per-connection count below.
   const count = () => page.evaluate(() => [window.godhand.received.hand_state, window.godhand.viewerStats ? window.godhand.viewerStats.received.hand_state : 0]);
   const before = await count();
-  await sleep(2000);
+  await sleep(3000);
   const after = await count();
   const dPage = after[0] - before[0], dViewer = after[1] - before[1];
-  check(dViewer > 5 && dPage >= 0.8 * dViewer,
-    `the real page kept receiving during the abuse: ${dPage} HandStates in 2 s, the viewer took ${dViewer} from DDS`);
+  check(dViewer > 5 && dPage >= 0.6 * dViewer,
+    `the real page kept receiving during the abuse: ${dPage} HandStates in 3 s, the viewer took ${dViewer} from DDS`);
   const s = await stats(v.url);
   check(s.dropped > 0, `messages for the never-reading client were dropped and counted (${s.dropped})`);
   const pageClient = s.per_client.find((c) => c.dropped === 0 && c.sent > 50);
