@@ -1,0 +1,295 @@
+// Plausibility of the God-hand motion (issue 10, METHOD.md §5): the hand stays outside AND
+// follows, slides, lifts off. Real BVHs, real sweeps, the real pipeline. Oracles: analytic
+// geometry (a plane, a cylinder, a wedge) evaluated by brute force at the bodies' extreme points,
+// the free twin (the same model and targets in an empty scene), the analytic excess lag.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "geometry/bvh.h"
+#include "pipeline/pipeline.h"
+#include "pipeline/run_metrics.h"
+#include "scene/mesh_io.h"
+#include "scene/scene.h"
+
+namespace godhand {
+namespace {
+
+HandModel bodyModel(const std::string& shape_text, double mass = 0.05) {
+  const std::string text = "name: \"probe\"\nbodies {\n  name: \"probe\"\n  " + shape_text +
+                           "\n  mass: " + std::to_string(mass) +
+                           "\n  rest_position { x: 0 y: 0 z: 0 }\n  rest_orientation { w: 1 x: 0 y: 0 z: 0 }\n"
+                           "  tracker_segment: \"probe\"\n}\n";
+  return HandModel::fromText(text, "probe");
+}
+
+SceneObject meshObject(const std::string& id, geo::TriangleMesh mesh, const Pose& X_WO) {
+  SceneObject o;
+  o.id = id;
+  o.X_WO = X_WO;
+  o.mass = 0.0;
+  o.god = std::make_shared<geo::MeshBvh>(std::move(mesh));
+  o.reference = o.god;
+  o.physics.type = PhysicsShapeType::None;
+  o.source = id;
+  return o;
+}
+
+Scene sceneOf(std::vector<SceneObject> objects) {
+  Scene s;
+  s.name = "test";
+  for (SceneObject& o : objects) {
+    o.index = static_cast<int>(s.objects.size());
+    s.god_triangles += o.god->triangleCount();
+    s.objects.push_back(std::move(o));
+  }
+  return s;
+}
+
+Pose at(double x, double y, double z, const Quat& q = Quat::Identity()) { return Pose{Vec3(x, y, z), q}; }
+Quat aboutY(double a) { return Quat(Eigen::AngleAxisd(a, Vec3::UnitY())); }
+
+PipelineParams params(double dt) {
+  PipelineParams p;
+  p.step.dt = dt;
+  p.simulate = false;
+  return p;
+}
+
+// Lowest point (world z) of a box / capsule / sphere: brute force over its extreme points.
+double lowestZ(const Shape& s, const Pose& X) {
+  const Mat3 R = X.q.toRotationMatrix();
+  switch (s.type) {
+    case ShapeType::Box: {
+      double z = 1e9;
+      for (int k = 0; k < 8; ++k)
+        z = std::min(z, (X.p + R * Vec3((k & 1) ? 1 : -1, (k & 2) ? 1 : -1, (k & 4) ? 1 : -1).cwiseProduct(s.half_extents)).z());
+      return z;
+    }
+    case ShapeType::Capsule:
+      return X.p.z() - std::abs(R.col(2).z()) * s.half_length - s.radius;
+    case ShapeType::Sphere:
+      return X.p.z() - s.radius;
+  }
+  return 0.0;
+}
+
+// A box slides along a plane while its target turns about a tangential axis, rocking on its
+// trailing bottom edge (the target itself just clears the plane): the God box follows the slide
+// and the turn (no artificial friction, no freeze) and no corner ever goes below the plane.
+TEST(Plausibility, BoxSlidesAndTurnsAboutATangentialAxisOnAPlane) {
+  const double top = 0.0;
+  Scene scene = sceneOf({meshObject("plate", boxMesh(Vec3(1.0, 1.0, 0.05)), at(0, 0, top - 0.05))});
+  const HandModel m = bodyModel("box { half_extents { x: 0.03 y: 0.02 z: 0.01 } }");
+  Pipeline pipe(scene, {&m}, params(1.0 / 100));
+  const Shape& s = m.bodies[0].shape;
+  double worst_follow = 0.0, worst_low = 1e9;
+  for (int k = 0; k <= 120; ++k) {
+    const double x = 0.002 * k;                          // 20 cm/s along +x
+    const double phi = 0.25 * std::sin(0.05 * k);        // rocks about y by up to 0.25 rad
+    // Pivot about the bottom edge that the tilt lowers (R_y(φ > 0) lowers +x), 0.3 mm above.
+    const double ex = phi >= 0 ? 0.03 : -0.03;
+    // 50 µm: inside the 0.1 mm contact margin, so the plane's rows are active all along.
+    const Vec3 pivot(x + ex, 0.0, top + 5e-5);
+    const Mat3 R = aboutY(phi).toRotationMatrix();
+    const Pose target{pivot + R * Vec3(-ex, 0.0, 0.01), aboutY(phi)};
+    ASSERT_GE(lowestZ(s, target), top + 5e-5 - 1e-12);  // the target is free (by construction)
+    const std::vector<HandInput> in{{true, &target, nullptr}};
+    pipe.step(in);
+    const Pose& X = pipe.poses(0)[0];
+    worst_low = std::min(worst_low, lowestZ(s, X));
+    if (k > 3) worst_follow = std::max(worst_follow, (X.p - target.p).norm() + 0.03 * X.q.angularDistance(target.q));
+  }
+  std::printf("[figure] box sliding + rocking on a plane: lowest corner %.3g m above, follow error max %.3g m\n",
+              worst_low - top, worst_follow);
+  EXPECT_GE(worst_low, top - 1e-9) << "a corner went through the plane";
+  EXPECT_LT(worst_follow, 1e-3) << "the box did not follow its free target along the plane";
+}
+
+// A capsule rolls around a cylinder with its target 2 mm inside it: the God capsule stays outside
+// the true cylinder (its axis distance checked at both core ends and the middle) and keeps up
+// with the target's angle.
+TEST(Plausibility, CapsuleRollsAlongACylinderWithoutSinkingOrStalling) {
+  const double R = 0.05, len = 0.4;
+  Scene scene = sceneOf({meshObject("cylinder", cylinderMesh(R, 0.5 * len, 128), at(0, 0, 0, Quat(Eigen::AngleAxisd(0.5 * M_PI, Vec3::UnitX()))))});
+  // The cylinder's axis is world y (its local z turned about x).
+  const HandModel m = bodyModel("capsule { radius: 0.008 half_length: 0.02 }");
+  Pipeline pipe(scene, {&m}, params(1.0 / 100));
+  const Shape& s = m.bodies[0].shape;
+  double worst_out = 1e9, worst_angle = 0.0;
+  for (int k = 0; k <= 150; ++k) {
+    const double a = 0.02 * k;  // rolls 2e-2 rad per frame around the axis, in the x-z plane
+    const double rt = R + s.radius - 0.002;  // target 2 mm inside
+    const Vec3 radial(std::cos(a), 0.0, std::sin(a));
+    // Capsule axis along the cylinder axis (world y).
+    const Pose target{rt * radial, Quat(Eigen::AngleAxisd(-0.5 * M_PI, Vec3::UnitX()))};
+    const std::vector<HandInput> in{{true, &target, nullptr}};
+    pipe.step(in);
+    const Pose& X = pipe.poses(0)[0];
+    const Vec3 axis = X.q * Vec3::UnitZ();
+    for (double u : {-1.0, 0.0, 1.0}) {
+      const Vec3 c = X.p + u * s.half_length * axis;
+      worst_out = std::min(worst_out, std::hypot(c.x(), c.z()) - s.radius - R);
+    }
+    if (k > 5) {
+      const double angle = std::atan2(X.p.z(), X.p.x());
+      double d = std::abs(angle - std::atan2(target.p.z(), target.p.x()));
+      d = std::min(d, 2 * M_PI - d);
+      worst_angle = std::max(worst_angle, d);
+    }
+  }
+  std::printf("[figure] capsule rolling on a cylinder, target 2 mm inside: min clearance %.3g m, angle lag max %.3g rad\n",
+              worst_out, worst_angle);
+  EXPECT_GE(worst_out, -1e-9) << "sank into the cylinder";
+  EXPECT_LT(worst_angle, 0.02) << "lags its target around the cylinder by more than one frame's roll";
+}
+
+// Pressed into a plane (target 5 mm below the surface, turned), then lifted clear while turning:
+// the frame after the target is free again the God box is at it (within 1 mm), not stuck below.
+TEST(Plausibility, LiftsOffWhileRotatingWithinOneFrame) {
+  Scene scene = sceneOf({meshObject("plate", boxMesh(Vec3(0.5, 0.5, 0.05)), at(0, 0, -0.05))});
+  const HandModel m = bodyModel("box { half_extents { x: 0.03 y: 0.02 z: 0.01 } }");
+  Pipeline pipe(scene, {&m}, params(1.0 / 60));
+  Pose target = at(0, 0, 0.01 - 0.005);
+  for (int k = 0; k < 30; ++k) {
+    const std::vector<HandInput> in{{true, &target, nullptr}};
+    pipe.step(in);
+  }
+  EXPECT_GE(lowestZ(m.bodies[0].shape, pipe.poses(0)[0]), -1e-9);
+  target = at(0.01, 0.0, 0.03, aboutY(0.2));  // 2.5 cm up, turned: free
+  ASSERT_GT(lowestZ(m.bodies[0].shape, target), 0.01);
+  const std::vector<HandInput> in{{true, &target, nullptr}};
+  pipe.step(in);
+  const Pose& X = pipe.poses(0)[0];
+  std::printf("[figure] lift-off while turning: error %.3g m, %.3g rad one frame later\n", (X.p - target.p).norm(),
+              X.q.angularDistance(target.q));
+  EXPECT_LT((X.p - target.p).norm(), 1e-3);
+  EXPECT_LT(X.q.angularDistance(target.q), 1e-3);
+}
+
+// The whole 16-body hand: its index fingertip's target is pushed up into a crease (two plates
+// meeting in a roof above it: the tip touches both faces) while the hand's other targets move
+// freely: those bodies follow their targets as the free twin does (within 1 mm; the finger
+// flexes to keep its tip out, within its joint range), the blocked tip stays outside both plates.
+TEST(Plausibility, FingertipInACreaseDoesNotHoldTheRestOfTheHand) {
+  const HandModel hand = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  int tip = -1;
+  for (size_t b = 0; b < hand.bodies.size(); ++b)
+    if (hand.bodies[b].name == "index.3") tip = static_cast<int>(b);
+  ASSERT_GE(tip, 0);
+  const std::vector<Pose> rest = hand.restPoses(Pose{});
+  const Vec3 c = rest[static_cast<size_t>(tip)].p;
+  // The crease: two thin plates crossing on a line along x 4 mm above the tip at ±45°; below
+  // the line they form a roof over the tip.
+  const double h = 0.002;
+  auto plate = [&](double angle, const std::string& id) {
+    const Quat q(Eigen::AngleAxisd(angle, Vec3::UnitX()));
+    return meshObject(id, boxMesh(Vec3(0.008, 0.02, h)), Pose{c + q * Vec3(0, 0, h) + Vec3(0, 0, 0.004 + 0.008 + 0.002), q});
+  };
+  Scene scene = sceneOf({plate(M_PI / 4, "left-face"), plate(-M_PI / 4, "right-face")});
+  Scene empty;
+  Pipeline pipe(scene, {&hand}, params(1.0 / 100));
+  Pipeline twin(empty, {&hand}, params(1.0 / 100));
+  std::vector<Pose> targets(hand.bodies.size());
+  double worst_free = 0.0;
+  for (int k = 0; k < 60; ++k) {
+    // The palm and the other fingers sway 2 mm around the rest pose; the index tip is pushed
+    // 6 mm up into the crease.
+    const Vec3 sway(0.002 * std::sin(0.2 * k), 0.002 * std::cos(0.15 * k), 0.0);
+    for (size_t b = 0; b < targets.size(); ++b) targets[b] = Pose{rest[b].p + sway, rest[b].q};
+    std::vector<unsigned char> driven(targets.size(), 1);
+    // The index chain follows its tip down (joint-consistent targets: translate the finger).
+    for (size_t b = 0; b < targets.size(); ++b)
+      if (hand.bodies[b].name == "index.3") targets[b].p.z() += 0.006;
+    const std::vector<HandInput> in{{true, targets.data(), driven.data()}};
+    if (k == 0) {  // start outside: the first frame without the push
+      std::vector<Pose> first = targets;
+      for (size_t b = 0; b < first.size(); ++b) first[b] = Pose{rest[b].p + Vec3(0, 0, -0.02), rest[b].q};
+      const std::vector<HandInput> in0{{true, first.data(), driven.data()}};
+      pipe.step(in0);
+      twin.step(in0);
+    }
+    pipe.step(in);
+    twin.step(in);
+    if (k < 10) continue;
+    for (size_t b = 0; b < targets.size(); ++b) {
+      const std::string& name = hand.bodies[b].name;
+      if (name.rfind("index.", 0) == 0 || name == "palm") continue;  // the blocked finger and its base
+      worst_free = std::max(worst_free, (pipe.poses(0)[b].p - twin.poses(0)[b].p).norm());
+    }
+    EXPECT_EQ(pipe.penetration(0), 0.0);
+  }
+  const double held = targets[static_cast<size_t>(tip)].p.z() - pipe.poses(0)[static_cast<size_t>(tip)].p.z();
+  std::printf("[figure] fingertip in a crease: tip held %.3g m below its target; the other fingers' distance to the "
+              "free twin max %.3g m\n", held, worst_free);
+  EXPECT_GT(held, 0.003) << "the crease does not hold the tip: the test would show nothing";
+  EXPECT_LT(worst_free, 1e-3);
+}
+
+// The excess lag of METHOD.md §5 on an analytic case: a sphere whose target sinks d into a plane
+// rests on the plane, so E = |god − twin| − depth(twin) = (d + δ) − d ≈ δ (the contact margin).
+TEST(Plausibility, ExcessLagOfARestingSphereIsTheMargin) {
+  Scene scene = sceneOf({meshObject("plate", boxMesh(Vec3(0.5, 0.5, 0.05)), at(0, 0, -0.05))});
+  const HandModel m = bodyModel("sphere { radius: 0.01 }");
+  const PipelineParams p = params(1.0 / 100);
+  Pipeline pipe(scene, {&m}, p);
+  RunMetrics metrics(scene, {&m}, {"probe"}, p);
+  const double d = 0.004;
+  for (int k = 0; k < 40; ++k) {
+    const Pose target = k < 5 ? at(0.001 * k, 0, 0.03) : at(0.001 * k, 0, 0.01 - d);
+    const HandInput in{true, &target, nullptr};
+    pipe.step({in});
+    HandSample s;
+    s.started = s.tracked = true;
+    s.X = pipe.poses(0).data();
+    s.targets = &target;
+    s.joint_gap = 0.0;
+    s.loaded = pipe.result(0).loaded;
+    metrics.add(0, s, in, pipe.resolver().collision());
+  }
+  const RunSummary sum = metrics.summary();
+  const double margin = p.step.rows.margin;
+  std::printf("[figure] resting sphere: excess lag median %.3g m (margin %.3g m), model error max %.3g m\n",
+              sum.all.excess_lag_m.median, margin, sum.all.model_error_m.max);
+  EXPECT_NEAR(sum.all.excess_lag_m.median, margin, 2e-5);
+  EXPECT_LT(sum.all.model_error_m.max, 1e-9);  // one free body reaches any target exactly
+  EXPECT_EQ(sum.all.stuck_frames, 0u);
+  EXPECT_EQ(sum.all.frozen_windows, 0u);
+  EXPECT_EQ(sum.all.penetration_max_m, 0.0);
+  EXPECT_TRUE(sum.failure.empty());
+}
+
+// A scene that encloses the tracking volume: the hand never starts, and the run says so.
+TEST(Plausibility, AHandThatNeverStartsIsAFailedRun) {
+  Scene scene = sceneOf({meshObject("room", boxMesh(Vec3(0.5, 0.5, 0.5)), at(0, 0, 0))});
+  const HandModel m = bodyModel("sphere { radius: 0.01 }");
+  const PipelineParams p = params(1.0 / 100);
+  Pipeline pipe(scene, {&m}, p);
+  RunMetrics metrics(scene, {&m}, {"probe"}, p);
+  const Pose target = at(0, 0, 0);  // deep inside the solid box: every start pose within 4 m is too
+  for (int k = 0; k < 5; ++k) {
+    const HandInput in{true, &target, nullptr};
+    pipe.step({in});
+    HandSample s;
+    s.started = pipe.started(0);
+    s.tracked = true;
+    s.X = s.started ? pipe.poses(0).data() : nullptr;
+    s.targets = &target;
+    metrics.add(0, s, in, pipe.resolver().collision());
+  }
+  const RunSummary sum = metrics.summary();
+  if (pipe.started(0)) {
+    // Started outside the box (the nearest exit is 0.5 m away): then it must be outside.
+    EXPECT_EQ(pipe.penetration(0), 0.0);
+    EXPECT_TRUE(sum.failure.empty());
+  } else {
+    EXPECT_NE(sum.failure.find("never started"), std::string::npos) << sum.failure;
+  }
+}
+
+}  // namespace
+}  // namespace godhand
