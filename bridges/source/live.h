@@ -18,6 +18,8 @@ struct CalibrationText {
   std::string hand_map;     ///< parseHandSides(): "0:left,1:right"
   std::string palm_offset;  ///< DTrack: "F,T,P" metres from the hand target to the palm centre
   int max_datagram = 0;     ///< bytes; 0: 32768
+  double volume_m = 0.0;    ///< tracking volume: max |coordinate| (m) of a hand; 0: 50 m
+  double max_speed = 0.0;   ///< palm speed limit (m/s); 0: 30 m/s
 };
 
 /// Throws SourceError with one line naming the bad field.

@@ -62,6 +62,55 @@ std::uint64_t applyHandSides(TrackerFrame* f, const SourceOptions& o) {
   return dropped;
 }
 
+/// Drops hands outside the tracking volume or jumping beyond the speed limit (SourceOptions).
+class Plausibility {
+ public:
+  explicit Plausibility(const SourceOptions& o) : o_(o) {}
+  void apply(TrackerFrame* f) {
+    std::vector<TrackedHand> kept;
+    for (const TrackedHand& h : f->hands) {
+      bool inside = h.X_W_palm.p.cwiseAbs().maxCoeff() <= o_.max_abs_position_m;
+      for (const auto& finger : h.joints_W)
+        for (const Vec3& j : finger) inside = inside && j.cwiseAbs().maxCoeff() <= o_.max_abs_position_m;
+      if (!inside) {
+        ++outside;
+        continue;
+      }
+      Last& l = last_[h.right ? 1 : 0];
+      const std::int64_t dt_us = f->timestamp_us - l.t_us;
+      if (l.valid && dt_us > 0 && dt_us <= 500000 &&
+          (h.X_W_palm.p - l.p).norm() / (static_cast<double>(dt_us) * 1e-6) > o_.max_speed_mps) {
+        ++jumps;
+        continue;
+      }
+      l = {true, h.X_W_palm.p, f->timestamp_us};
+      kept.push_back(h);
+    }
+    f->hands.swap(kept);
+  }
+  void addTo(SourceStats* s) const {
+    if (outside) {
+      s->by_reason.emplace_back("hand outside the tracking volume", outside);
+      s->detail += "; hands outside the tracking volume " + std::to_string(outside);
+    }
+    if (jumps) {
+      s->by_reason.emplace_back("hand jump beyond the speed limit", jumps);
+      s->detail += "; hand jumps beyond the speed limit " + std::to_string(jumps);
+    }
+    s->rejected += outside + jumps;
+  }
+  std::uint64_t outside = 0, jumps = 0;
+
+ private:
+  struct Last {
+    bool valid = false;
+    Vec3 p = Vec3::Zero();
+    std::int64_t t_us = 0;
+  };
+  SourceOptions o_;
+  Last last_[2];
+};
+
 double meanRate(const std::vector<TrackerFrame>& frames) {
   if (frames.size() < 2) return 0.0;
   const double dt = static_cast<double>(frames.back().timestamp_us - frames.front().timestamp_us) * 1e-6;
@@ -71,8 +120,12 @@ double meanRate(const std::vector<TrackerFrame>& frames) {
 /// A replay of frames decoded up front (every file format).
 class FrameReplay : public TrackerSource {
  public:
-  FrameReplay(std::string what, std::string path, std::vector<TrackerFrame> frames, SourceStats base, std::int64_t limit)
+  FrameReplay(std::string what, std::string path, std::vector<TrackerFrame> frames, SourceStats base, const SourceOptions& o)
       : what_(std::move(what)), path_(std::move(path)), frames_(std::move(frames)), base_(std::move(base)) {
+    const std::int64_t limit = o.frames;
+    Plausibility plausible(o);
+    for (TrackerFrame& f : frames_) plausible.apply(&f);
+    plausible.addTo(&base_);
     if (frames_.empty()) throw SourceError(path_ + ": no usable frames (" + base_.detail + ")");
     rate_ = meanRate(frames_);
     if (!(rate_ > 1.0 && rate_ < 10000.0)) {
@@ -167,7 +220,7 @@ std::unique_ptr<FrameReplay> leapReplay(const std::string& path, const SourceOpt
       s.by_reason.emplace_back(std::string("hand: ") + leap::reasonName(static_cast<leap::HandReject>(i)),
                                r.handRejects(static_cast<leap::HandReject>(i)));
   if (dropped) s.by_reason.emplace_back("hand not in the hand map", dropped);
-  return std::make_unique<FrameReplay>("leap replay", path, std::move(frames), std::move(s), o.frames);
+  return std::make_unique<FrameReplay>("leap replay", path, std::move(frames), std::move(s), o);
 }
 
 /// DTrack datagrams (a .dtrack file, or the records of a raw recording with their arrival times).
@@ -186,7 +239,7 @@ std::unique_ptr<FrameReplay> dtrackReplay(const std::string& path, const std::ve
   addDecoderStats(dec, dropped, &s);
   if (frames.empty() && records.size() > 0 && dec.rejectedTotal() > 0)
     throw SourceError(path + ": no usable frames (" + s.detail + "; last: " + dec.lastDetail() + ")");
-  return std::make_unique<FrameReplay>(what, path, std::move(frames), std::move(s), o.frames);
+  return std::make_unique<FrameReplay>(what, path, std::move(frames), std::move(s), o);
 }
 
 std::vector<RawRecord> dtrackFileRecords(const std::string& path) {
@@ -215,7 +268,7 @@ std::unique_ptr<FrameReplay> jsonlReplay(const std::string& path, const SourceOp
     s.by_reason.emplace_back("hand not in the hand map", dropped);
     s.rejected += dropped;
   }
-  return std::make_unique<FrameReplay>(r.format + " replay", path, std::move(r.frames), std::move(s), o.frames);
+  return std::make_unique<FrameReplay>(r.format + " replay", path, std::move(r.frames), std::move(s), o);
 }
 
 std::unique_ptr<FrameReplay> openReplay(const std::string& path, const std::string& format, const SourceOptions& o) {
@@ -232,11 +285,14 @@ std::unique_ptr<FrameReplay> openReplay(const std::string& path, const std::stri
     for (TrackerFrame& f : g.frames) dropped += applyHandSides(&f, o);
     SourceStats s;
     s.received = g.samples;
-    s.rejected = g.rejected_not_finite + dropped;
-    s.detail = "synthetic hand samples " + std::to_string(g.samples) + " (rejected: NaN/Inf " + std::to_string(g.rejected_not_finite) + ")";
-    if (g.rejected_not_finite) s.by_reason.emplace_back("NaN/Inf", g.rejected_not_finite);
+    s.rejected = g.rejected + dropped;
+    s.by_reason = g.by_reason;
+    s.detail = "synthetic hand samples " + std::to_string(g.samples) + " (rejected: ";
+    for (size_t i = 0; i < g.by_reason.size(); ++i)
+      s.detail += (i ? ", " : "") + g.by_reason[i].first + " " + std::to_string(g.by_reason[i].second);
+    s.detail += g.by_reason.empty() ? "none)" : ")";
     if (dropped) s.by_reason.emplace_back("hand not in the hand map", dropped);
-    return std::make_unique<FrameReplay>("synthetic", path, std::move(g.frames), std::move(s), o.frames);
+    return std::make_unique<FrameReplay>("synthetic", path, std::move(g.frames), std::move(s), o);
   }
   if (format == "dtrack") return dtrackReplay(path, dtrackFileRecords(path), o, "dtrack replay");
   if (format == "raw") {
@@ -252,7 +308,7 @@ std::unique_ptr<FrameReplay> openReplay(const std::string& path, const std::stri
 class DtrackUdp final : public TrackerSource {
  public:
   DtrackUdp(std::string host, int port, const SourceOptions& o)
-      : host_(std::move(host)), port_(port), opt_(o), dec_(parseLimits(o), mapOptions(o)), buf_(65536 + 1) {}
+      : host_(std::move(host)), port_(port), opt_(o), dec_(parseLimits(o), mapOptions(o)), plausible_(o), buf_(65536 + 1) {}
   ~DtrackUdp() override {
     if (fd_ >= 0) ::close(fd_);
   }
@@ -300,6 +356,7 @@ class DtrackUdp final : public TrackerSource {
       if (tap_) tap_(bytes, arrival);
       if (dec_.feed(bytes, arrival / 1000, frame)) {
         side_dropped_ += applyHandSides(frame, opt_);
+        plausible_.apply(frame);
         last_arrival_ = arrival;
         return true;
       }
@@ -309,6 +366,7 @@ class DtrackUdp final : public TrackerSource {
     SourceStats s;
     s.frames = dec_.accepted();
     addDecoderStats(dec_, side_dropped_, &s);
+    plausible_.addTo(&s);
     return s;
   }
   std::int64_t lastArrivalNs() const override { return last_arrival_; }
@@ -319,6 +377,7 @@ class DtrackUdp final : public TrackerSource {
   int port_;
   SourceOptions opt_;
   dtrack::Decoder dec_;
+  Plausibility plausible_;
   std::vector<char> buf_;
   int fd_ = -1;
   std::uint64_t side_dropped_ = 0;

@@ -3,6 +3,7 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <sstream>
 
 #include "skeleton/skeleton.h"
@@ -153,6 +154,7 @@ Generated generate(const Script& sc, const Pose& X_WT) {
   };
   HandState h[2];
   Generated g;
+  std::map<std::string, std::uint64_t> reasons;
   const double dt = 1.0 / sc.rate_hz;
   std::int64_t k = 0;
   auto emit = [&] {
@@ -177,8 +179,12 @@ Generated generate(const Script& sc, const Pose& X_WT) {
       ++g.samples;
       leap::TrackedHand th;
       skeleton::Reject why;
-      if (skeleton::handFromLandmarks(a, s == 1, 1.0, s, X_WT, &th, &why)) f.hands.push_back(th);
-      else ++g.rejected_not_finite;
+      if (skeleton::handFromLandmarks(a, s == 1, 1.0, s, X_WT, &th, &why)) {
+        f.hands.push_back(th);
+      } else {
+        ++g.rejected;
+        ++reasons[skeleton::reasonName(why)];
+      }
     }
     g.frames.push_back(std::move(f));
   };
@@ -212,6 +218,7 @@ Generated generate(const Script& sc, const Pose& X_WT) {
     }
   }
   if (g.frames.empty()) emit();
+  for (const auto& [reason, n] : reasons) g.by_reason.emplace_back(reason, n);
   return g;
 }
 

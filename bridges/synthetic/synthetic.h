@@ -54,7 +54,8 @@ Script parseScript(const std::string& text, const std::string& name);
 struct Generated {
   std::vector<leap::TrackerFrame> frames;
   std::uint64_t samples = 0;           ///< hand samples generated (tracked ones, NaN included)
-  std::uint64_t rejected_not_finite = 0;  ///< NaN samples dropped
+  std::uint64_t rejected = 0;          ///< samples the skeleton layer refused (NaN bursts, ...)
+  std::vector<std::pair<std::string, std::uint64_t>> by_reason;  ///< those, by reason
 };
 
 /// The frames of a script (timestamps from 0 at rate_hz), hands in W.

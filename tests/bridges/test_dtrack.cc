@@ -487,9 +487,10 @@ TEST(Sources, CalibrationTextAndSilenceMonitor) {
   EXPECT_TRUE(o.y_up);
   ASSERT_EQ(o.hand_sides.size(), 2u);
   EXPECT_EQ(o.palm_offset_m, Vec3(0, 0, 0.02));
-  for (auto bad : {br::CalibrationText{"", "inch", "", "", "", 0}, br::CalibrationText{"", "", "x", "", "", 0},
-                   br::CalibrationText{"", "", "", "", "0,0,2", 0}, br::CalibrationText{"", "", "", "", "", 70000},
-                   br::CalibrationText{"1,2", "", "", "", "", 0}})
+  for (auto bad : {br::CalibrationText{"", "inch", "", "", "", 0, 0.0, 0.0}, br::CalibrationText{"", "", "x", "", "", 0, 0.0, 0.0},
+                   br::CalibrationText{"", "", "", "", "0,0,2", 0, 0.0, 0.0}, br::CalibrationText{"", "", "", "", "", 70000, 0.0, 0.0},
+                   br::CalibrationText{"1,2", "", "", "", "", 0, 0.0, 0.0}, br::CalibrationText{"", "", "", "", "", 0, -1.0, 0.0},
+                   br::CalibrationText{"", "", "", "", "", 0, 0.0, -5.0}})
     EXPECT_THROW(br::sourceOptions(bad), br::SourceError);
   // cm units scale the DTrack stream: the palm lands 10x further from the origin.
   br::CalibrationText cm;

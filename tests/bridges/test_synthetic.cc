@@ -123,3 +123,26 @@ TEST(Synthetic, PressSlideLiftDropoutTeleportNanThroughThePipeline) {
   EXPECT_EQ(untracked, 20u + 5u);               // 0.2 s lost at 100 Hz, plus the 5 NaN frames
   EXPECT_EQ(held_move, 0.0);                    // a lost hand is held
 }
+
+// Glitches (issue 11: "a palm at 1e305 m or a 10-frame glitch to 1 km is accepted silently"):
+// every source drops hands outside the tracking volume and single-frame jumps beyond the speed
+// limit, counted; the hand is kept again once it is back (or after 0.5 s: a re-acquisition).
+TEST(Synthetic, GlitchesBeyondTheVolumeOrTheSpeedLimitAreDropped) {
+  const bridges::LoadedRecording r = bridges::loadRecording(dataPath("glitches.txt"));
+  std::printf("[info] %s\n", r.rejections.c_str());
+  EXPECT_NE(r.rejections.find("hand jumps beyond the speed limit 10"), std::string::npos) << r.rejections;
+  EXPECT_NE(r.rejections.find("hands outside the tracking volume 1"), std::string::npos) << r.rejections;
+  size_t with_hand = 0;
+  for (const auto& f : r.frames) {
+    with_hand += f.hands.size();
+    for (const auto& h : f.hands) EXPECT_LT(h.X_W_palm.p.norm(), 1.0);
+  }
+  EXPECT_EQ(with_hand, r.frames.size() - 11);
+  // A looser limit keeps the 5 m glitch (so the test is not vacuous), a tighter volume drops all.
+  bridges::SourceOptions o;
+  o.max_speed_mps = 1000.0;
+  const bridges::LoadedRecording loose = bridges::loadRecording(dataPath("glitches.txt"), o);
+  EXPECT_EQ(loose.rejections.find("speed limit"), std::string::npos) << loose.rejections;
+  o.max_abs_position_m = 0.1;
+  EXPECT_THROW(bridges::loadRecording(dataPath("glitches.txt"), o), bridges::SourceError);  // no tracked hands
+}
