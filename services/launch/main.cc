@@ -237,12 +237,12 @@ int main(int argc, char** argv) {
   cli.option("--restart-delay", &restart_delay, "S", "delay before a restart");
   cli.option("--silent-after", &silent_after, "S", "watchdog: a service without a heartbeat for S seconds is dead (heartbeats every 0.5 s)");
   cli.multi("--kill", &kill_specs, "SERVICE@WHEN",
-            "fault drill (repeatable): SIGKILL SERVICE, then restart it; WHEN = S or Ss (seconds after the replay's first frame) "
+            "fault drill: SIGKILL SERVICE, then restart it; WHEN = S or Ss (seconds after the replay's first frame) "
             "or fN (at tracker frame N), e.g. scene@2, resolver@f120, ingest@1.5s");
   cli.option("--loss-budget", &loss_budget, "F", "--check (live): lost frames allowed per cluster, as a fraction of the expected frames");
   cli.flag("--check", &check,
            "exit 1 unless penetration <= margin, joint gap <= 1e-6 m, no solver failure, lost frames within --loss-budget "
-           "(lock-step: none lost, none stale), every service running at the end, the late joiner served, every drill done");
+           "(lock-step: none lost, none stale), every service running at the end, the late joiner served, every drill done, no other lab on the domain");
   cli.flag("--quiet", &quiet, "no per-second lines");
   cli.epilog("exit status: 0 ok; 1 the run or its --check failed; 2 bad configuration; 3 services did not come up.");
   // --render systemd OUTDIR: two values, so taken out of argv before the parser (listed for --help)
