@@ -24,8 +24,16 @@ status=0
 for t in "${TARGETS[@]}"; do
   [ -n "${SOURCES[$t]:-}" ] || { echo "unknown fuzz target $t"; exit 2; }
   echo "== building fuzz_$t"
-  # shellcheck disable=SC2086
-  if ! nice "$CXX" "${FLAGS[@]}" ${SOURCES[$t]} -o "$OUT/fuzz_$t"; then echo "FAILED: build of fuzz_$t"; exit 1; fi
+  objs=()
+  for src in ${SOURCES[$t]}; do  # each source compiled once for all targets
+    obj="$OUT/obj/$(echo "${src#$SRC/}" | tr '/' '_').o"
+    mkdir -p "$OUT/obj"
+    if [ ! -f "$obj" ] || [ "$src" -nt "$obj" ]; then
+      if ! nice "$CXX" "${FLAGS[@]}" -c "$src" -o "$obj"; then echo "FAILED: compiling $src"; exit 1; fi
+    fi
+    objs+=("$obj")
+  done
+  if ! "$CXX" -fsanitize=fuzzer,address,undefined "${objs[@]}" -o "$OUT/fuzz_$t"; then echo "FAILED: link of fuzz_$t"; exit 1; fi
   corpus="$OUT/corpus_$t"; rm -rf "$corpus"; mkdir -p "$corpus"
   cp "$SRC/tests/fuzz/corpus/$t/"* "$corpus/"
   # Regression inputs (former crashes) must pass first.
