@@ -20,7 +20,9 @@
 // No I/O: the caller formats the Summary (services/bench, services/launch).
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cstdio>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -109,5 +111,47 @@ struct MetricThresholds {
   static constexpr double kAwayFromTarget = 1e-3;  ///< m
   static constexpr double kTinyToc = 1e-3;
 };
+
+}  // namespace godhand
+
+namespace godhand {
+
+/// The plausibility verdict every --check uses (godhand-bench, godhand-launch in lock-step):
+/// every hand started and was not held in most of its frames, no stuck frame, frozen windows at
+/// most 5 % of the moving windows. `why` gets the first reason it fails.
+inline bool plausible(const RunSummary& s, std::string* why) {
+  if (!s.failure.empty()) {
+    *why = s.failure;
+    return false;
+  }
+  if (s.all.stuck_frames > 0) {
+    *why = std::to_string(s.all.stuck_frames) + " stuck frames (not moving although the way to the targets is free)";
+    return false;
+  }
+  if (s.all.frozen_windows * 20 > std::max<std::uint64_t>(s.all.moving_windows, 1)) {
+    *why = std::to_string(s.all.frozen_windows) + " of " + std::to_string(s.all.moving_windows) +
+           " moving windows frozen (more than 5 %)";
+    return false;
+  }
+  return true;
+}
+
+/// One line per hand for a summary (the same words in every report).
+inline std::string describe(const HandSummary& h) {
+  char buf[640];
+  std::snprintf(buf, sizeof buf,
+                "%s hand: excess lag (distance to the free twin beyond what the scene forces) median %.2f p95 %.2f max "
+                "%.2f mm, %llu of %zu frames above 5 mm; frozen %llu of %llu moving windows; stuck %llu frames; model "
+                "error (twin to targets: what the hand model cannot follow) median %.2f max %.2f mm; free tracking error "
+                "(no contact loaded) median %.2f max %.2f mm; clipped %llu frames (TOC < 1e-3 in %llu), rounds %llu",
+                h.name.c_str(), h.excess_lag_m.median * 1e3, h.excess_lag_m.p95 * 1e3, h.excess_lag_m.max * 1e3,
+                static_cast<unsigned long long>(h.lag_above_5mm), h.excess_lag_m.count,
+                static_cast<unsigned long long>(h.frozen_windows), static_cast<unsigned long long>(h.moving_windows),
+                static_cast<unsigned long long>(h.stuck_frames), h.model_error_m.median * 1e3, h.model_error_m.max * 1e3,
+                h.free_tracking_error_m.median * 1e3, h.free_tracking_error_m.max * 1e3,
+                static_cast<unsigned long long>(h.clipped_frames), static_cast<unsigned long long>(h.toc_below_1e3),
+                static_cast<unsigned long long>(h.substeps));
+  return buf;
+}
 
 }  // namespace godhand

@@ -56,7 +56,7 @@ struct PipelineParams {
   /// Solve -> sweep rounds per frame (Ortega et al., Redon; METHOD.md §2 step 5): after a clip
   /// the contacts at the clipped pose are found and the rest of the motion towards the same
   /// targets is solved and swept again, at most this many rounds in all.
-  int max_substeps = 4;
+  int max_substeps = 2;
 
   void validate() const;              ///< throws std::invalid_argument naming the field
 };

@@ -39,6 +39,9 @@
 #include "godhand.h"
 #include "math/stats.h"
 #include "pipeline/collision_world.h"
+#include "pipeline/run_metrics.h"
+#include "pipeline/run_metrics_json.h"
+#include "model/hand_model.h"
 #include "runtime/convert.h"
 #include "scene/scene_file.h"
 #include "source/tracker_source.h"
@@ -322,6 +325,27 @@ int main(int argc, char** argv) {
   }
   CollisionWorld world(scene);
   const size_t C = lab.clusters.size();
+  // The plausibility figures (core/pipeline/run_metrics.h, the same as godhand-bench's): each
+  // received HandState with the HandTarget of its frame, against the scene as received.
+  std::vector<HandModel> models(C);
+  std::unique_ptr<RunMetrics> metrics;
+  try {
+    std::vector<const HandModel*> mp;
+    std::vector<std::string> names;
+    for (size_t c = 0; c < C; ++c) {
+      models[c] = HandModel::loadFile(lab.clusters[c].model);
+      mp.push_back(&models[c]);
+      names.push_back(lab.clusters[c].name);
+    }
+    PipelineParams mparams;
+    mparams.step.dt = 1.0 / (lockstep ? rate : rate * speed);
+    mparams.step.solver = solver == "pgs" ? SolverKind::Pgs : SolverKind::Exact;
+    metrics = std::make_unique<RunMetrics>(scene, mp, names, mparams);
+  } catch (const std::exception& e) {
+    cli.fail(e.what());
+  }
+  std::vector<std::vector<Pose>> m_targets(C), m_poses(C);
+  std::vector<std::vector<unsigned char>> m_driven(C);
   const double margin = RowParams{}.margin;
   const double stale_after = lab.stale_after_s;
 
@@ -591,6 +615,41 @@ int main(int argc, char** argv) {
       window_pen = std::max(window_pen, pen);
     }
     rep.joint_gap_max_m = std::max(rep.joint_gap_max_m, h.joint_gap());
+    if (!scene_down && h.hand() < C && h.poses().size() == models[h.hand()].bodies.size()) {
+      const std::size_t c = h.hand();
+      HandSample s;
+      s.started = h.started();
+      s.tracked = h.tracked();
+      s.held = h.held();
+      m_poses[c].resize(h.poses().size());
+      for (std::size_t b = 0; b < h.poses().size(); ++b) m_poses[c][b] = svc::fromWire(h.poses()[b]);
+      s.X = m_poses[c].data();
+      s.loaded = h.loaded();
+      s.clipped = h.clipped();
+      s.toc = h.toc();
+      s.substeps = static_cast<int>(h.substeps());
+      s.joint_gap = h.joint_gap();
+      HandInput in;
+      auto it = targets.find(h.stamp().frame());
+      if (it != targets.end() && c < it->second.size()) {
+        const msg::HandTarget& t = it->second[c];
+        if (t.tracked() && t.targets().size() == m_poses[c].size() && t.driven().size() == m_poses[c].size()) {
+          m_targets[c].resize(t.targets().size());
+          m_driven[c].resize(t.driven().size());
+          for (std::size_t b = 0; b < t.targets().size(); ++b) {
+            m_targets[c][b] = svc::fromWire(t.targets()[b]);
+            m_driven[c][b] = t.driven()[b] ? 1 : 0;
+          }
+          in.tracked = true;
+          in.targets = m_targets[c].data();
+          in.has_target = m_driven[c].data();
+          s.targets = in.targets;
+          s.has_target = in.has_target;
+        }
+      }
+      if (!in.tracked) s.tracked = false;  // no target at hand for this frame: not scored against one
+      metrics->add(static_cast<int>(c), s, in, world);
+    }
     if (h.tracked()) {
       rep.kkt_max = std::max(rep.kkt_max, h.kkt());
       if (!h.loaded()) {  // free space: the distance to the tracked targets
@@ -980,6 +1039,8 @@ int main(int argc, char** argv) {
                    {"scene", percentile(st_scene, 0.5)}};
   rep.margin_m = margin;
   rep.free_err_median_m = percentile(free_err, 0.5);
+  rep.plausibility = metrics->summary();
+  rep.have_plausibility = true;
   rep.silent = watchdog.episodes();
   for (Watchdog::Episode& e : rep.silent) {  // times from the replay start, as every other time
     const double off = t_replay == Clock::time_point{} ? 0.0 : std::chrono::duration<double>(t_replay - t_start).count();
@@ -1014,6 +1075,13 @@ int main(int argc, char** argv) {
     f.solver_failures = rep.solver_failures;
     f.states = rep.states;
     rep.verdict = evaluateRun(f);
+    // The plausibility rule of godhand-bench's --check, in lock-step (every frame is seen; live
+    // runs lose frames, so their windows are figures, not a verdict).
+    std::string why;
+    if (lockstep && !plausible(rep.plausibility, &why)) {
+      rep.verdict.ok = false;
+      rep.verdict.reasons.push_back("not plausible: " + why);
+    }
   }
   printSummary(rep);
 

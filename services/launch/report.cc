@@ -1,5 +1,7 @@
 #include "launch/report.h"
 
+#include "pipeline/run_metrics_json.h"
+
 #include <cstdio>
 
 namespace godhand {
@@ -38,6 +40,8 @@ void printSummary(const RunReport& r) {
                 static_cast<unsigned long long>(s.deadline_misses), s.state.c_str(), s.health.c_str());
   std::printf("  penetration max %.4f mm (margin %.3f mm), joint gap max %.2e m, free tracking error max %.2f mm, clipped %ld, scene push-outs %ld\n",
               r.penetration_max_m * 1e3, r.margin_m * 1e3, r.joint_gap_max_m, r.free_err_max_m * 1e3, r.clipped, r.pushouts);
+  if (r.have_plausibility)
+    for (const HandSummary& h : r.plausibility.hands) std::printf("  %s\n", describe(h).c_str());
   if (r.penetration_unscored > 0)
     std::printf("  penetration not scored for %ld states in %zu window(s) while the scene was down (its last poses are old)\n",
                 r.penetration_unscored, r.unscored_windows.size());
@@ -98,6 +102,13 @@ nlohmann::json reportJson(const RunReport& r) {
   j["joint_gap_max_m"] = r.joint_gap_max_m;
   j["free_tracking_error_max_m"] = r.free_err_max_m;
   j["free_tracking_error_median_m"] = r.free_err_median_m;
+  if (r.have_plausibility) {
+    j["plausibility"] = toJson(r.plausibility);
+    j["excess_lag_m"] = toJson(r.plausibility.all.excess_lag_m);
+    j["frozen_windows"] = r.plausibility.all.frozen_windows;
+    j["moving_windows"] = r.plausibility.all.moving_windows;
+    j["stuck_frames"] = r.plausibility.all.stuck_frames;
+  }
   j["contacts_max"] = r.contacts_max;
   j["kkt_residual_max"] = r.kkt_max;
   j["solver_failures"] = r.solver_failures;

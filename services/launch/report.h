@@ -17,6 +17,7 @@
 
 #include "common/delivery.h"
 #include "common/watchdog.h"
+#include "pipeline/run_metrics.h"
 
 namespace godhand {
 
@@ -66,6 +67,10 @@ struct RunReport {
   long contacts_max = 0, solver_failures = 0, inexact = 0, clipped = 0, lifted = 0, inside = 0, pushouts = 0;
   long penetration_unscored = 0;        ///< states not scored: the scene was dead (its poses are old)
   std::vector<std::pair<double, double>> unscored_windows;  ///< seconds after the replay start
+
+  // Plausibility (core/pipeline/run_metrics.h: the same figures as godhand-bench's).
+  RunSummary plausibility;
+  bool have_plausibility = false;
 
   // Services, liveness, drills.
   std::map<std::string, ServiceFigures> services;

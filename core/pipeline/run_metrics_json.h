@@ -1,0 +1,46 @@
+// The run metrics (run_metrics.h) as JSON, the same fields in every report (godhand-bench and
+// godhand-launch). Header-only: nlohmann-json is header-only too.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include "pipeline/run_metrics.h"
+
+namespace godhand {
+
+inline nlohmann::json toJson(const Spread& s) {
+  return nlohmann::json{{"median", s.median}, {"p95", s.p95}, {"max", s.max}, {"count", s.count}};
+}
+
+inline nlohmann::json toJson(const HandSummary& h) {
+  return nlohmann::json{{"frames", h.frames},
+                        {"tracked", h.tracked},
+                        {"started", h.started},
+                        {"not_started", h.never_started},
+                        {"held", h.held},
+                        {"penetration_max_m", h.penetration_max_m},
+                        {"joint_gap_max_m", h.joint_gap_max_m},
+                        {"excess_lag_m", toJson(h.excess_lag_m)},
+                        {"excess_lag_above_5mm", h.lag_above_5mm},
+                        {"moving_windows", h.moving_windows},
+                        {"frozen_windows", h.frozen_windows},
+                        {"stuck_frames", h.stuck_frames},
+                        {"model_error_m", toJson(h.model_error_m)},
+                        {"free_tracking_error_m", toJson(h.free_tracking_error_m)},
+                        {"clipped_frames", h.clipped_frames},
+                        {"toc_below_1e-3", h.toc_below_1e3},
+                        {"substeps", h.substeps},
+                        {"substeps_max", h.substeps_max}};
+}
+
+/// `plausibility`: {all: ..., per_hand: {NAME: ...}, failure: "" or why}.
+inline nlohmann::json toJson(const RunSummary& s) {
+  nlohmann::json j;
+  j["all"] = toJson(s.all);
+  j["per_hand"] = nlohmann::json::object();
+  for (const HandSummary& h : s.hands) j["per_hand"][h.name] = toJson(h);
+  j["failure"] = s.failure;
+  return j;
+}
+
+}  // namespace godhand
