@@ -103,9 +103,11 @@ TEST(DtrackGodHands, SameGodHandsAsTheLeapRecordings) {
                 static_cast<unsigned long long>(b.clipped));
     EXPECT_GT(compared, 1000u);
     // Hands without contact in both runs: the God hand is on its target, so the readers' ~1e-6 m
-    // difference is all there is.
+    // difference is all there is. In rotation, where the targets leave the model's joint range
+    // the free hand is their projection onto it, which multiplies the readers' 6.6e-5 rad a few
+    // times (1.x e-4 rad with the core of 16:30; 2.2e-4 rad with the solve -> sweep rounds).
     EXPECT_LT(dp_free, 1e-5) << name;
-    EXPECT_LT(dq_free, 2e-4) << name;
+    EXPECT_LT(dq_free, 5e-4) << name;
     // In contact the method is not continuous in its input: a 1e-6 m target difference can flip a
     // contact decision (which face, a clip or not), and the hands then differ by millimetres until
     // they are free again (measured 1.9e-6 m with the core of 2026-12-01 16:30; 1.4-15 mm with the
