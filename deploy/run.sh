@@ -98,7 +98,7 @@ PY
       -DCMAKE_CXX_FLAGS="-D_GLIBCXX_ASSERTIONS" \
       -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g"
     build build-asan godhand_core_tests godhand_alloc_test godhand_geometry_tests godhand_scene_tests \
-      godhand_physics_tests godhand_bridges_tests godhand_pipeline_tests godhand_launch_tests godhand_services_tests godhand_runtime_tests
+      godhand_physics_tests godhand_bridges_tests godhand_pipeline_tests godhand_launch_tests godhand_services_tests godhand_runtime_tests godhand_viewer_tests
     # new_delete_type_mismatch=0: libfastrtps 2.9.1 itself (~RTPSReader) trips it (services tests).
     ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:new_delete_type_mismatch=0 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
       ctest --test-dir build-asan --output-on-failure -j2 --timeout 900 -LE programs
