@@ -544,7 +544,6 @@ int main(int argc, char** argv) {
   std::vector<double> latency_us, window_latency;
   std::vector<double> st_contacts, st_assembly, st_solve, st_integrate, st_ccd, st_merge, st_scene;
   double window_pen = 0;
-  std::vector<double> free_err;
   std::vector<double> st_total;  // compute time per frame: the stages' own times, no transport
   double last_scene_us = 0;
   ResultHash hash;
@@ -650,23 +649,7 @@ int main(int argc, char** argv) {
       if (!in.tracked) s.tracked = false;  // no target at hand for this frame: not scored against one
       metrics->add(static_cast<int>(c), s, in, world);
     }
-    if (h.tracked()) {
-      rep.kkt_max = std::max(rep.kkt_max, h.kkt());
-      if (!h.loaded()) {  // free space: the distance to the tracked targets
-        auto it = targets.find(h.stamp().frame());
-        if (it != targets.end() && h.hand() < it->second.size()) {
-          const msg::HandTarget& t = it->second[h.hand()];
-          if (t.tracked() && t.targets().size() == h.poses().size()) {
-            double e = 0;
-            for (size_t b = 0; b < t.targets().size(); ++b)
-              if (b < t.driven().size() && t.driven()[b])
-                e = std::max(e, (svc::fromWire(h.poses()[b]).p - svc::fromWire(t.targets()[b]).p).norm());
-            free_err.push_back(e);
-            rep.free_err_max_m = std::max(rep.free_err_max_m, e);
-          }
-        }
-      }
-    }
+    if (h.tracked()) rep.kkt_max = std::max(rep.kkt_max, h.kkt());
   };
   auto setSceneDown = [&](bool down) {
     if (down == scene_down) return;
@@ -1038,9 +1021,11 @@ int main(int argc, char** argv) {
                    {"ccd", percentile(st_ccd, 0.5)},           {"merge", percentile(st_merge, 0.5)},
                    {"scene", percentile(st_scene, 0.5)}};
   rep.margin_m = margin;
-  rep.free_err_median_m = percentile(free_err, 0.5);
   rep.plausibility = metrics->summary();
   rep.have_plausibility = true;
+  // The free tracking error has one definition (run_metrics.h), as in godhand-bench.
+  rep.free_err_max_m = rep.plausibility.all.free_tracking_error_m.max;
+  rep.free_err_median_m = rep.plausibility.all.free_tracking_error_m.median;
   rep.silent = watchdog.episodes();
   for (Watchdog::Episode& e : rep.silent) {  // times from the replay start, as every other time
     const double off = t_replay == Clock::time_point{} ? 0.0 : std::chrono::duration<double>(t_replay - t_start).count();
