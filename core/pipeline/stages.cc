@@ -100,6 +100,7 @@ HandSolver::~HandSolver() = default;
 void HandSolver::setScene(const SceneSnapshot& snapshot) {
   applySnapshot(collision_, snapshot);
   scene_frame_ = snapshot.frame;
+  scene_step_ = snapshot.step;
 }
 
 void HandSolver::adopt(const HandResult& result) {
@@ -269,6 +270,7 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
   HandProposal& p = proposal_;
   p.frame = frame;
   p.scene_frame = scene_frame_;
+  p.scene_step = scene_step_;
   p.tracked = in.tracked && in.targets != nullptr;
   p.lifted_start = false;
   p.contact_count = 0;
@@ -390,6 +392,7 @@ Resolver::~Resolver() = default;
 void Resolver::setScene(const SceneSnapshot& snapshot) {
   applySnapshot(collision_, snapshot);
   scene_frame_ = snapshot.frame;
+  scene_step_ = snapshot.step;
 }
 
 namespace {
@@ -452,7 +455,8 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
     hand.X_from = continuing ? r.X : p->X_old;
     r.present = true;
     r.frame = frame;
-    r.scene_frame = p->scene_frame;
+    r.scene_frame = scene_frame_;  // trusted or swept again, the poses are checked against this scene
+    r.scene_step = scene_step_;
     r.tracked = p->tracked;
     r.started = p->started;
     r.lifted_start = p->lifted_start;
@@ -479,7 +483,7 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
     // one a sweep here would check (lock-step and in-process runs: always). Otherwise (a live
     // solver that stepped from an older state or scene) the straight motion from the last result
     // is swept again and clipped here.
-    if (p->swept && p->scene_frame == scene_frame_ && samePoses(hand.X_from, p->X_old)) {
+    if (p->swept && p->scene_frame == scene_frame_ && p->scene_step == scene_step_ && samePoses(hand.X_from, p->X_old)) {
       ++counters_.trusted;
       r.toc = p->toc;
       r.started_inside = p->started_inside;
@@ -519,9 +523,25 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
       for (size_t b = 0; b < n; ++b)
         collision_.contacts(hand.model->bodies[b].shape, X[b], static_cast<int>(b), params_.contact_reach,
                             params_.contacts, &hand.contacts);
+      hand.X_toc = X;
       hand.stepper->reproject(hand.contacts.data(), static_cast<int>(hand.contacts.size()));
-      r.X = hand.stepper->poses();
-      r.joint_errors = hand.stepper->lastReport().joint_errors;
+      // The re-closing moves bodies too: swept as well. Where it would hit, the hand stays at its
+      // last result this frame (swept: no motion), as a solver's round that cannot move would.
+      bool free = true;
+      const std::vector<Pose>& Xr = hand.stepper->poses();
+      for (size_t b = 0; b < n && free; ++b) {
+        const geo::SweepResult s = collision_.sweep(hand.model->bodies[b].shape, hand.X_toc[b], Xr[b], params_.sweep);
+        free = !s.hit && !s.started_inside && s.toc >= 1.0;
+      }
+      if (free) {
+        r.X = Xr;
+        r.joint_errors = hand.stepper->lastReport().joint_errors;
+      } else {
+        ++counters_.held_back;
+        r.X = hand.X_from;
+        r.joint_errors = jointErrors(*hand.model, hand.X_from.data());
+        r.toc = 0.0;
+      }
       r.clipped = true;
     } else {
       r.X = p->X_new;

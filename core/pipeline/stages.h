@@ -85,6 +85,7 @@ struct SolverTimes {
 struct HandProposal {
   std::uint64_t frame = 0;
   std::uint64_t scene_frame = 0;  ///< SceneSnapshot frame the step was taken against
+  std::uint64_t scene_step = 0;   ///< and its step: live, several snapshots share a frame
   bool tracked = false;
   bool started = false;
   bool lifted_start = false;
@@ -109,7 +110,8 @@ struct HandProposal {
 /// resolver -> everyone: the final pose of one cluster for one frame.
 struct HandResult {
   std::uint64_t frame = 0;
-  std::uint64_t scene_frame = 0;
+  std::uint64_t scene_frame = 0;  ///< the SceneSnapshot (frame, step) the poses were resolved against
+  std::uint64_t scene_step = 0;
   bool present = false;           ///< a proposal was resolved this frame (else: held)
   bool tracked = false;
   bool started = false;
@@ -178,6 +180,7 @@ struct ResolverCounters {
   std::uint64_t frames = 0, clipped_steps = 0, started_inside = 0, forces_clamped = 0, held = 0;
   std::uint64_t trusted = 0;      ///< proposals taken as swept by their solver (same start, scene)
   std::uint64_t reswept = 0;      ///< proposals swept again here (another start or scene)
+  std::uint64_t held_back = 0;    ///< of those, clipped and re-closed into the scene: kept at the last result
 };
 struct SceneCounters {
   std::uint64_t steps = 0, scene_pushouts = 0, pushout_unresolved = 0;
@@ -222,7 +225,7 @@ class HandSolver {
   CollisionWorld collision_;
   std::unique_ptr<ClusterStepper> stepper_;
   bool started_ = false;
-  std::uint64_t scene_frame_ = 0;
+  std::uint64_t scene_frame_ = 0, scene_step_ = 0;
   JointErrors last_errors_;
   std::vector<Contact> contacts_;
   std::vector<Contact> clip_contacts_;  // scratch: contacts at a clipped pose
@@ -264,12 +267,13 @@ class Resolver {
     HandResult result;
     std::vector<Contact> contacts;            // scratch
     std::vector<Pose> X_from;                 // scratch: start of the resolved motion
+    std::vector<Pose> X_toc;                  // scratch: the clipped poses before re-closing
   };
   void applyForces(int h, const HandProposal& p);
 
   PipelineParams params_;
   CollisionWorld collision_;
-  std::uint64_t scene_frame_ = 0;
+  std::uint64_t scene_frame_ = 0, scene_step_ = 0;
   std::vector<unsigned char> dynamic_;
   std::vector<Hand> hands_;
   ForceSet forces_;

@@ -549,6 +549,10 @@ int main(int argc, char** argv) {
   ResultHash hash;
   std::map<std::uint64_t, FrameHands> pending;          // lock-step: frame -> hands
   std::map<std::uint64_t, SceneSnapshot> scenes;        // lock-step: frame -> scene
+  // Live: the newest scene states by step. A HandState is scored against the scene state it was
+  // resolved against (scene_step), not the newest: the scene steps on its own clock, and a hand
+  // resting on an object the newest state has moved is not a penetration of the method.
+  std::map<std::uint64_t, SceneSnapshot> recent_scenes;
   std::map<std::uint64_t, std::vector<msg::HandTarget>> targets;  // frame -> per cluster
   std::uint64_t next_frame = 1;
   std::uint64_t last_scene_step = 0;
@@ -699,9 +703,13 @@ int main(int argc, char** argv) {
         rep.scene_restart_jump_m = std::max(rep.scene_restart_jump_m, jump);
       }
       for (const ObjectMotion& o : snap.objects) scene_last[o.index] = o;
-      if (lockstep) scenes[snap.frame] = snap;
-      else
-        for (const ObjectMotion& o : snap.objects) world.setObjectPose(o.index, o.X);
+      if (lockstep) {
+        scenes[snap.frame] = snap;
+      } else {
+        if (!recent_scenes.empty() && snap.step <= recent_scenes.rbegin()->first) recent_scenes.clear();  // a new scene run
+        recent_scenes[snap.step] = snap;
+        while (recent_scenes.size() > 256) recent_scenes.erase(recent_scenes.begin());
+      }
       const ChildStatus* sc = sup.find("scene");
       if (!sc || sc->running) setSceneDown(false);  // a state of the running scene: its poses are current
     }
@@ -727,7 +735,13 @@ int main(int argc, char** argv) {
           window_latency.push_back(lat);
         }
       } else {
-        measure(h, nullptr, lat, stale_rx);
+        const SceneSnapshot* own = nullptr;
+        if (!recent_scenes.empty()) {
+          const auto it = recent_scenes.find(h.scene_step());
+          own = it != recent_scenes.end() ? &it->second : &recent_scenes.rbegin()->second;
+          if (h.started() && !h.held() && !scene_down) ++(it != recent_scenes.end() ? rep.penetration_own_scene : rep.penetration_newest_scene);
+        }
+        measure(h, own, lat, stale_rx);
         const double now_s = replayS();
         hand_stale[h.hand()] = stale_rx;
         bool any_stale = false;
@@ -815,6 +829,7 @@ int main(int argc, char** argv) {
     for (const std::string& name : watchdog.update(Clock::now())) {
       std::printf("launch: watchdog: %s silent (no heartbeat for %.1f s)%s\n", name.c_str(), watchdog.silentFor(name, Clock::now()),
                   restart && !lockstep && specOf(name) ? ": killing it for a restart" : "");
+      std::fflush(stdout);  // now, not with the next per-second line
       if (name == "scene") setSceneDown(true);
       if (restart && !lockstep && specOf(name) && sup.signal(name, SIGKILL)) {
         killed_by_us.insert(name);

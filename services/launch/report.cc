@@ -42,6 +42,10 @@ void printSummary(const RunReport& r) {
               r.penetration_max_m * 1e3, r.margin_m * 1e3, r.joint_gap_max_m, r.free_err_max_m * 1e3, r.clipped, r.pushouts);
   if (r.have_plausibility)
     for (const HandSummary& h : r.plausibility.hands) std::printf("  %s\n", describe(h).c_str());
+  if (r.penetration_newest_scene > 0)
+    std::printf("  penetration of %ld states scored against the newest scene state (the one they were resolved against was not "
+                "kept), %ld against their own\n",
+                r.penetration_newest_scene, r.penetration_own_scene);
   if (r.penetration_unscored > 0)
     std::printf("  penetration not scored for %ld states in %zu window(s) while the scene was down (its last poses are old)\n",
                 r.penetration_unscored, r.unscored_windows.size());
@@ -95,6 +99,8 @@ nlohmann::json reportJson(const RunReport& r) {
   j["stages_us"] = r.stages_us;
   j["penetration_max_m"] = r.penetration_max_m;
   j["penetration_unscored_states"] = r.penetration_unscored;
+  j["penetration_own_scene_states"] = r.penetration_own_scene;
+  j["penetration_newest_scene_states"] = r.penetration_newest_scene;
   nlohmann::json w = nlohmann::json::array();
   for (const auto& [a, b] : r.unscored_windows) w.push_back({{"from_s", orNull(a)}, {"to_s", orNull(b)}});
   j["penetration_unscored_windows"] = w;

@@ -66,6 +66,9 @@ struct RunReport {
   double penetration_max_m = 0, margin_m = 0, joint_gap_max_m = 0, free_err_max_m = 0, free_err_median_m = 0, kkt_max = 0;
   long contacts_max = 0, solver_failures = 0, inexact = 0, clipped = 0, lifted = 0, inside = 0, pushouts = 0;
   long penetration_unscored = 0;        ///< states not scored: the scene was dead (its poses are old)
+  /// Live: states scored against the scene state they were resolved against (its step was still
+  /// in the launcher's history) / against the newest scene state instead (their own was gone).
+  long penetration_own_scene = 0, penetration_newest_scene = 0;
   std::vector<std::pair<double, double>> unscored_windows;  ///< seconds after the replay start
 
   // Plausibility (core/pipeline/run_metrics.h: the same figures as godhand-bench's).

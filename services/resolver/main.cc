@@ -242,5 +242,10 @@ int main(int argc, char** argv) {
       std::fill(live.have.begin(), live.have.end(), 0);
     }
   }
+  const ResolverCounters& rc = resolver->counters();
+  std::fprintf(stderr, "resolver: proposals trusted as swept %llu, swept again %llu (kept at the last result %llu), clipped %llu, held %llu\n",
+               static_cast<unsigned long long>(rc.trusted), static_cast<unsigned long long>(rc.reswept),
+               static_cast<unsigned long long>(rc.held_back), static_cast<unsigned long long>(rc.clipped_steps),
+               static_cast<unsigned long long>(rc.held));
   return service.finish(0);
 }

@@ -78,6 +78,7 @@ bool fromWire(const msg::HandTarget& in, std::size_t bodies, std::vector<Pose>* 
 
 void toWire(const HandProposal& p, msg::HandProposal* out) {
   out->scene_frame(p.scene_frame);
+  out->scene_step(p.scene_step);
   out->tracked(p.tracked);
   out->started(p.started);
   out->lifted_start(p.lifted_start);
@@ -118,6 +119,7 @@ void toWire(const HandProposal& p, msg::HandProposal* out) {
 bool fromWire(const msg::HandProposal& in, std::size_t bodies, int objects, HandProposal* out, std::string* why) {
   out->frame = in.stamp().frame();
   out->scene_frame = in.scene_frame();
+  out->scene_step = in.scene_step();
   out->tracked = in.tracked();
   out->started = in.started();
   out->lifted_start = in.lifted_start();
@@ -154,6 +156,7 @@ bool fromWire(const msg::HandProposal& in, std::size_t bodies, int objects, Hand
 
 void toWire(const HandResult& r, const HandModel& model, bool stale, msg::HandState* out) {
   out->scene_frame(r.scene_frame);
+  out->scene_step(r.scene_step);
   out->tracked(r.tracked);
   out->started(r.started);
   out->lifted_start(r.lifted_start);
@@ -188,6 +191,7 @@ void toWire(const HandResult& r, const HandModel& model, bool stale, msg::HandSt
 bool fromWire(const msg::HandState& in, std::size_t bodies, HandResult* out, std::string* why) {
   out->frame = in.stamp().frame();
   out->scene_frame = in.scene_frame();
+  out->scene_step = in.scene_step();
   out->present = !in.held();
   out->tracked = in.tracked();
   out->started = in.started();

@@ -18,6 +18,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 
 CASE, BIN, DEPLOY, DOMAIN = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4]
@@ -126,6 +127,21 @@ def launch_bg(extra):
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True), report
 
 
+def rest_of(p, timeout):
+    """The rest of p's output once it ends (within timeout, else it is killed). Not
+    p.communicate(timeout=...): with a timeout it reads the pipe's descriptor directly and loses
+    the lines readline() has already buffered (a live line printed with the one read last)."""
+    out = []
+    reader = threading.Thread(target=lambda: out.append(p.stdout.read()), daemon=True)
+    reader.start()
+    reader.join(timeout)
+    if reader.is_alive():
+        p.kill()
+        reader.join(10)
+    p.wait(10)
+    return "".join(out)
+
+
 def wait_line(p, pattern, timeout, lines):
     deadline = time.time() + timeout
     while time.time() < deadline:
@@ -178,7 +194,7 @@ def case_freeze(service, recording, restart):
                 os.kill(pid, signal.SIGCONT)
             if restart:
                 check(any(f"{service} restarted" in l for l in lines), f"{service} restarted by the watchdog")
-        out, _ = p.communicate(timeout=240)
+        out = rest_of(p, 240)
     except Exception:
         p.kill()
         p.communicate()
