@@ -269,5 +269,46 @@ TEST(Pipeline, DeterministicHash) {
   EXPECT_EQ(a, b);
 }
 
+// Live, the scene steps on its own clock: two scene states may share a frame and differ in where
+// the objects are. A proposal swept against one of them is not trusted against the other (that
+// would let the hand into an object that moved towards it): the resolver sweeps it again, and the
+// result stays out of the object where the resolver sees it (exact penetration, reference mesh).
+TEST(Pipeline, ResolverSweepsAgainAProposalOfAnotherSceneStateOfTheSameFrame) {
+  Scene scene = sceneOf({boxObject("box", Vec3(0.03, 0.03, 0.03), at(0, 0, 0), 0.2)}, Vec3::Zero());
+  const HandModel probe = probeModel("sphere { radius: 0.01 }", 0.05);
+  const PipelineParams params = paramsFor(1.0 / 60);
+  HandSolver solver(scene, probe, params);
+  Resolver resolver(scene, {&probe}, params);
+  auto snapshot = [](std::uint64_t frame, std::uint64_t step, double box_x) {
+    SceneSnapshot s;
+    s.frame = frame;
+    s.step = step;
+    s.objects.push_back(ObjectMotion{0, at(box_x, 0, 0), Vec3::Zero(), Vec3::Zero()});
+    return s;
+  };
+  const SceneSnapshot s1 = snapshot(1, 1, 0.0);
+  solver.setScene(s1);
+  resolver.setScene(s1);
+  Pose target = at(-0.08, 0, 0);
+  const HandInput in{true, &target, nullptr};
+  const HandProposal& p1 = solver.step(in, 1);
+  resolver.resolve({&p1}, 1);
+  solver.adopt(resolver.result(0));
+  EXPECT_EQ(resolver.counters().trusted, 1u) << "same start, same scene state: the solver's sweep stands";
+  // Next frame: the sphere moves to x = -0.045 (1.5 cm from the box's face: free in the solver's
+  // scene); the resolver meanwhile has a newer state of frame 1 with the box 1 cm nearer.
+  target = at(-0.045, 0, 0);
+  const HandProposal& p2 = solver.step(in, 2);
+  ASSERT_NEAR(p2.X_new[0].p.x(), -0.045, 1e-6) << "free in the solver's scene";
+  resolver.setScene(snapshot(1, 2, -0.01));
+  resolver.resolve({&p2}, 2);
+  EXPECT_EQ(resolver.counters().reswept, 1u);
+  EXPECT_EQ(resolver.counters().trusted, 1u);
+  EXPECT_TRUE(resolver.result(0).clipped);
+  EXPECT_EQ(resolver.result(0).scene_step, 2u);
+  EXPECT_LE(resolver.penetration(0), 1e-9) << "the face moved to x = -0.04: the sphere stops at or before -0.05";
+  EXPECT_LT(resolver.result(0).X[0].p.x(), -0.05 + 1e-6);
+}
+
 }  // namespace
 }  // namespace godhand

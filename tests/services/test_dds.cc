@@ -90,6 +90,7 @@ msg::HandState handState(std::uint32_t hand, std::uint64_t frame, std::size_t po
   s.stamp().source_time_ns(1700000000123456789LL + static_cast<long long>(frame));
   s.stamp().publish_time_ns(-1);
   s.scene_frame(frame + 7);
+  s.scene_step(frame + 0x100000000ull);
   s.tracked(true);
   s.stale(frame % 2 == 0);
   s.toc(0.1 + 1e-17);
@@ -325,6 +326,7 @@ TEST(DdsRoundTrip, HandStateArrivesBitIdenticalAtAnotherParticipant) {
   EXPECT_EQ(x.stamp().source_time_ns(), sent.stamp().source_time_ns());
   EXPECT_EQ(x.stamp().publish_time_ns(), -1);
   EXPECT_EQ(x.scene_frame(), sent.scene_frame());
+  EXPECT_EQ(x.scene_step(), sent.scene_step());
   EXPECT_EQ(x.stale(), sent.stale());
   ASSERT_EQ(x.poses().size(), 16u);
   ASSERT_EQ(x.shapes().size(), 16u);
