@@ -83,6 +83,39 @@ double secondOrderTime(double margin, const Vec3& w, const Vec3& dp, const Vec3&
   return inf;
 }
 
+/// A lower bound of the time before a triangle (corners v, frame M) comes within `reach` (core
+/// radius + η) of a body's core, along the separating axis fixed in the BODY (w at t = 0, then
+/// turning with the body): the triangle, seen from the body, moves by the inverse motion, and a
+/// triangle under the body's centre hardly moves when the body turns, however large the body.
+/// (The axis fixed in the mesh frame, secondOrderTime, counts every turn of a large box about a
+/// tangential axis as an approach of its far corners, which is what made a palm resting on a
+/// curved surface creep along in tiny steps.)
+///   s(t) = min_i a(t)·(v_i − p(t)) − h(u) ≤ distance(core, triangle), a(t) = R(t) u, h: the core's
+///   support along u (constant in the body). −ds_i/dt = a·dp + θ·(r_i × a), r_i = v_i − p(t):
+///   at t = 0 it is B_i = w·dp + θ·(r_i0 × w); |a(t) − w| ≤ t|θ| and |r_i(t) − r_i0| ≤ t|dp| bound
+///   its change by t|θ|(2|dp| + |θ||r_i0|) = A_i t. So s_i falls by at most B_i t + A_i t²/2.
+/// `floor`: the least margin (as visitTriangle's).
+double bodyAxisTime(const std::array<Vec3, 3>& v, const Vec3& p0, const Vec3& w, double support, double reach,
+                    const Vec3& dp, const Vec3& theta, double floor) {
+  const double th = theta.norm(), dpn = dp.norm();
+  double t_min = std::numeric_limits<double>::infinity();
+  for (const Vec3& vi : v) {
+    const Vec3 r = vi - p0;
+    const double m = std::max(w.dot(r) - support - reach, floor);
+    const double B = w.dot(dp) + theta.dot(r.cross(w));
+    const double A = th * (2.0 * dpn + th * r.norm());
+    double t;
+    if (A > 0.0) {
+      const double q = std::sqrt(B * B + 2.0 * A * m);
+      t = B >= 0.0 ? 2.0 * m / (B + q) : (q - B) / A;
+    } else {
+      t = B > 0.0 ? m / B : std::numeric_limits<double>::infinity();
+    }
+    t_min = std::min(t_min, t);
+  }
+  return t_min * (1.0 - 1e-12);  // round-off: never later than the bound
+}
+
 /// The shape's core in frame M, with what the box lower bounds need.
 struct CoreM {
   ShapeType type = ShapeType::Sphere;
@@ -537,6 +570,11 @@ double MeshBvh::advancementStep(const Shape& shape, const Pose& X_MB, const Vec3
       t_i = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
       if (t_i < best && n_axes > 0)
         t_i = std::max(t_i, secondOrderTime(margin, w_M, dp_M, theta_M, axes, halves, n_axes, horizon));
+      if (t_i < best && theta_M.squaredNorm() > 0.0) {
+        double support = 0.0;
+        for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(w_M.dot(axes[j]));
+        t_i = std::max(t_i, bodyAxisTime(v, X_MB.p, w_M, support, r + eta, dp_M, theta_M, kMinShrink));
+      }
     }
     if (t_i < best) {
       best = t_i;

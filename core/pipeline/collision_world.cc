@@ -176,12 +176,14 @@ geo::SweepResult CollisionWorld::sweep(const Shape& shape, const Pose& X_W0, con
   geo::SweepResult best;
   best.distance = kInf;
   if (object_hit) *object_hit = -1;
+  int total_iterations = 0;
   const geo::Aabb swept = sweptBox(X_W0.p, X_W1.p, geo::boundingRadius(shape) + params.stop_distance);
   for (size_t oi = 0; oi < objects_.size(); ++oi) {
     const Object& o = objects_[oi];
     if (!o.god || !o.box_W.overlaps(swept)) continue;
     const Pose X_WOinv = o.X_WO.inverse();
     const geo::SweepResult r = geo::sweep(shape, X_WOinv * X_W0, X_WOinv * X_W1, *o.god, params);
+    total_iterations += r.iterations;
     if (r.started_inside) {  // cannot be clipped; reported, resolved by push-out contacts
       best.started_inside = true;
       continue;
@@ -194,6 +196,8 @@ geo::SweepResult CollisionWorld::sweep(const Shape& shape, const Pose& X_W0, con
     }
     best.iterations = std::max(best.iterations, r.iterations);
   }
+  best.capped = best.hit && best.capped;
+  best.iterations = total_iterations;  // the work of every object's sweep
   return best;
 }
 

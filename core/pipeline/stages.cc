@@ -217,6 +217,7 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
   double toc = 1.0;
   for (size_t b = 0; b < model_.bodies.size(); ++b) {
     const geo::SweepResult s = collision_.sweep(model_.bodies[b].shape, X0[b], X1[b], params_.sweep);
+    countSweep(s);
     if (s.started_inside) *started_inside = true;
     blocked_[b] = s.hit ? 1 : 0;
     body_toc_[b] = s.toc;
@@ -254,6 +255,7 @@ void HandSolver::clip(double toc_min) {
   const std::vector<Pose>& X = stepper_->poses();
   for (size_t b = 0; b < n && free; ++b) {
     const geo::SweepResult s = collision_.sweep(model_.bodies[b].shape, X_clip_[b], X[b], params_.sweep);
+    countSweep(s);
     free = !s.hit && !s.started_inside && s.toc >= 1.0;
   }
   if (free) {

@@ -175,6 +175,10 @@ struct SceneSnapshot {
 
 struct SolverCounters {
   std::uint64_t steps = 0, lifted_starts = 0, solver_failures = 0, inexact_solves = 0;
+  /// Body sweeps, their conservative-advancement iterations (every object), and the sweeps that
+  /// ran out of iterations (SweepParams::max_iterations: stopped where verified, a hit that
+  /// may be none: a friction of the method, counted).
+  std::uint64_t sweeps = 0, sweep_iterations = 0, sweeps_capped = 0;
 };
 struct ResolverCounters {
   std::uint64_t frames = 0, clipped_steps = 0, started_inside = 0, forces_clamped = 0, held = 0;
@@ -210,6 +214,11 @@ class HandSolver {
   const CollisionWorld& collision() const { return collision_; }
 
  private:
+  void countSweep(const geo::SweepResult& s) {
+    ++counters_.sweeps;
+    counters_.sweep_iterations += static_cast<std::uint64_t>(s.iterations);
+    if (s.capped) ++counters_.sweeps_capped;
+  }
   bool start(const HandInput& in);
   /// The nearest free rigid translation of the poses X (shift; zero when X is free already).
   bool freeStart(std::vector<Pose>* X, Vec3* shift) const;

@@ -64,6 +64,10 @@ const char* kUsage =
     "  --contact-rotation R  most a body within 5 mm of a contact turns per frame, rad\n"
     "  --max-rotation R, --max-translation M  most any body turns (rad) / moves (m) per frame\n"
     "  --contacts-per-pair K contacts kept per (God object, scene object) (default 8)\n"
+    "  --stop-distance M     the sweep stops a body this far from a surface, m (default 2.5e-5)\n"
+    "  --sweep-iterations N  conservative-advancement iterations per sweep before it stops where verified (default 100)\n"
+    "  --contact-margin M    the solver keeps contacts this far apart, m (default 1e-4)\n"
+    "  --push-out B          share of a contact's deficit under the margin made good per step (default 0.5)\n"
     "  --tracker-pose POSE   tracker to world: x,y,z[,rx,ry,rz degrees | ,qw,qx,qy,qz] (default identity)\n"
     "  --hand-sides MAP      tracker hand id -> side, e.g. 0:left,1:right (DTrack)\n"
     "  --quiet               no progress lines\n"
@@ -86,6 +90,10 @@ struct Args {
   double max_rotation = PipelineParams{}.step.max_step_rotation;
   int per_pair = PipelineParams{}.contacts.per_pair;
   double max_translation = PipelineParams{}.step.max_step_translation;
+  double stop_distance = PipelineParams{}.sweep.stop_distance;
+  int sweep_iterations = PipelineParams{}.sweep.max_iterations;
+  double contact_margin = PipelineParams{}.step.rows.margin;
+  double push_out = PipelineParams{}.step.rows.contact_beta;
   bool physics = true, quiet = false, check = false;
 };
 
@@ -135,6 +143,10 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--max-rotation") a.max_rotation = parseDouble(f, value(), 1e-6, 10.0);
     else if (f == "--contacts-per-pair") a.per_pair = static_cast<int>(parseCount(f, value(), 1, 64));
     else if (f == "--max-translation") a.max_translation = parseDouble(f, value(), 1e-6, 100.0);
+    else if (f == "--stop-distance") a.stop_distance = parseDouble(f, value(), 1e-6, 1e-2);
+    else if (f == "--sweep-iterations") a.sweep_iterations = static_cast<int>(parseCount(f, value(), 1, 100000));
+    else if (f == "--contact-margin") a.contact_margin = parseDouble(f, value(), 0.0, 1e-2);
+    else if (f == "--push-out") a.push_out = parseDouble(f, value(), 0.0, 1.0);
     else if (f == "--hand-sides") a.hand_sides = value();
     else if (f == "--solver") {
       const std::string s = value();
@@ -225,6 +237,10 @@ int main(int argc, char** argv) {
   params.step.max_step_rotation = args.max_rotation;
   params.step.max_step_translation = args.max_translation;
   params.contacts.per_pair = args.per_pair;
+  params.sweep.stop_distance = args.stop_distance;
+  params.sweep.max_iterations = args.sweep_iterations;
+  params.step.rows.margin = args.contact_margin;
+  params.step.rows.contact_beta = args.push_out;
   std::unique_ptr<Pipeline> pipe;
   std::unique_ptr<RunMetrics> metrics;
   std::vector<leap::Retargeter> retarget;
@@ -349,6 +365,10 @@ int main(int argc, char** argv) {
               static_cast<unsigned long long>(all.substeps), static_cast<unsigned long long>(all.substeps_max), contacts_max,
               kkt_max, static_cast<unsigned long long>(c.solver_failures), static_cast<unsigned long long>(c.inexact_solves),
               static_cast<unsigned long long>(c.lifted_starts), static_cast<unsigned long long>(c.scene_pushouts));
+  std::printf("  sweeps %llu, conservative-advancement iterations %llu (%.2f per sweep), %llu stopped at the iteration bound\n",
+              static_cast<unsigned long long>(c.sweeps), static_cast<unsigned long long>(c.sweep_iterations),
+              c.sweeps ? static_cast<double>(c.sweep_iterations) / static_cast<double>(c.sweeps) : 0.0,
+              static_cast<unsigned long long>(c.sweeps_capped));
   if (!sum.failure.empty()) std::printf("  FAILED RUN: %s\n", sum.failure.c_str());
   char hex[32];
   std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash.h));
@@ -398,6 +418,9 @@ int main(int argc, char** argv) {
     j["started_inside"] = c.started_inside;
     j["scene_pushouts"] = c.scene_pushouts;
     j["forces_clamped"] = c.forces_clamped;
+    j["sweeps"] = c.sweeps;
+    j["sweep_iterations"] = c.sweep_iterations;
+    j["sweeps_capped"] = c.sweeps_capped;
     if (sum.failure.empty()) j["result_hash"] = hex;
     else j["failure"] = sum.failure;
     // Every object's placement: file coordinates -> world, p_W = scale R p_file + t (R, t the

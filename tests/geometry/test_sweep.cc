@@ -511,5 +511,47 @@ TEST(Sweep, RestingAndSlidingMakesProgress) {
   EXPECT_EQ(tocs.front(), 1.0);  // sliding parallel to a plane is never stopped
 }
 
+TEST(Sweep, PalmTurningOverACurvedSurfaceKeepsItsStride) {
+  // A palm-sized box (8 x 8 x 2 cm) resting 60 µm above a sphere (r = 5 cm) turns up to 0.06 rad
+  // about a tangential axis through its centre while it slides 2 mm. Along the mesh-fixed axis
+  // the far corners dip (ρ|θ| ≈ 2.5 mm per step), which made the sweep creep in steps of 1-2 %
+  // of the motion until its iteration cap (a stop that is no contact: a frozen palm); along the
+  // body-fixed axis the triangles under the palm hardly move. Where the sampled motion never
+  // comes within 2η, the sweep must let the whole motion through, in a few iterations.
+  const MeshBvh ball(icosphere(0.05, 4));
+  Oracle fast{&ball, false};
+  Stats st;
+  Rng rng(41);
+  Shape box;
+  box.type = ShapeType::Box;
+  box.half_extents = Vec3(0.04, 0.04, 0.01);
+  const SweepParams params;
+  std::vector<int> iterations;
+  int free_motions = 0;
+  for (int i = 0; i < 40; ++i) {
+    Pose X0, X1;
+    X0.q = expRotation(Vec3(0, 0, rng.uniform(0, 3)));
+    X0.p = Vec3(0, 0, 0.05 + 0.01 + 6e-5);
+    const Vec3 axis = Vec3(std::cos(0.7 * i), std::sin(0.7 * i), 0.0);
+    X1.q = expRotation(rng.uniform(0.01, 0.06) * axis) * X0.q;
+    X1.p = X0.p + 0.002 * Vec3(-std::sin(0.3 * i), std::cos(0.3 * i), 0.0);
+    checkMotion(box, X0, X1, ball, fast, &st, params);
+    double d_min = fast(box, X0);
+    for (int k = 1; k <= 400; ++k) d_min = std::min(d_min, fast(box, interpolateMotion(X0, X1, k / 400.0)));
+    if (!(d_min > 2.0 * params.stop_distance)) continue;
+    ++free_motions;
+    const SweepResult r = sweep(box, X0, X1, ball, params);
+    EXPECT_FALSE(r.hit) << "motion " << i << " never comes within " << d_min << " m";
+    EXPECT_EQ(r.toc, 1.0);
+    iterations.push_back(r.iterations);
+  }
+  ASSERT_GE(free_motions, 10) << "the mix must have free motions to judge";
+  std::sort(iterations.begin(), iterations.end());
+  std::printf("[figure] palm turning over a sphere: %d free motions, iterations median %d max %d\n", free_motions,
+              iterations[iterations.size() / 2], iterations.back());
+  st.print("palm turning over a sphere");
+  EXPECT_LE(iterations.back(), 12);
+}
+
 }  // namespace
 }  // namespace godhand::geo
