@@ -42,7 +42,7 @@ SweepResult directionalSweep(const Shape& shape, const Motion& motion, double mu
       result.hit = true;
       result.capped = true;
       result.toc = t;
-      result.distance = distanceAt(shape, motion, t, mu + eta, bvh);
+      result.distance = params.exact_distance ? distanceAt(shape, motion, t, mu + eta, bvh) : d_limit;
       return result;
     }
     ++result.iterations;
@@ -55,13 +55,14 @@ SweepResult directionalSweep(const Shape& shape, const Motion& motion, double mu
         result.hit = true;
         result.toc = t;
         // The limiting triangle is within η + tolerance; a nearer one may be receding.
-        result.distance = std::min(d_limit, distanceAt(shape, motion, t, d_limit, bvh));
+        result.distance = params.exact_distance ? std::min(d_limit, distanceAt(shape, motion, t, d_limit, bvh)) : d_limit;
         return result;
       }
     }
     if (limiting.triangle < 0 || dt >= horizon) {
       result.toc = 1.0;
-      result.distance = distanceAt(shape, motion, 1.0, mu + eta, bvh);
+      result.distance = params.exact_distance ? distanceAt(shape, motion, 1.0, mu + eta, bvh)
+                                              : std::numeric_limits<double>::quiet_NaN();
       return result;
     }
     t += dt;

@@ -40,6 +40,10 @@ struct SweepParams {
   int max_iterations = 100;       ///< then the toc reached so far is returned (conservative)
   /// Directional per-triangle bounds (see above); false: the plain global-μ advancement.
   bool directional = true;
+  /// SweepResult::distance exact at toc (one more closest query per sweep that meets a
+  /// triangle); false: for a hit, the distance of the triangle that stopped it (≥ the exact
+  /// one), for a free motion NaN. toc, hit and the guarantee are the same either way.
+  bool exact_distance = true;
 };
 
 struct SweepResult {
@@ -47,7 +51,8 @@ struct SweepResult {
   bool hit = false;            ///< the motion reaches the stop distance before t = 1
   bool started_inside = false; ///< d(0) ≤ 0: nothing can be said; toc = 0
   int iterations = 0;
-  double distance = 0.0;       ///< d(toc), m (+inf if nothing within reach: μ + η at toc = 1)
+  double distance = 0.0;       ///< d(toc), m (+inf if nothing within reach: μ + η at toc = 1;
+                               ///< see SweepParams::exact_distance)
   bool capped = false;         ///< max_iterations ran out: toc is the conservative time reached
                                ///< (< 1), reported with hit = true so that the caller stops there
 };

@@ -88,6 +88,7 @@ HandSolver::HandSolver(const Scene& scene, const HandModel& model, const Pipelin
   const int per = static_cast<int>(model.bodies.size()) * params_.contacts.per_pair * 4;
   blocked_.assign(model.bodies.size(), 0);
   body_toc_.assign(model.bodies.size(), 1.0);
+  reclose_toc_.assign(model.bodies.size(), 1.0);
   stepper_->reserve(per);
   contacts_.reserve(static_cast<size_t>(per));
   proposal_.loads.reserve(static_cast<size_t>(per));
@@ -249,20 +250,29 @@ void HandSolver::clip(double toc_min) {
   X0_ = stepper_->previousPoses();
   X1_ = stepper_->poses();
   stepper_->interpolate(body_toc_.data());
-  X_clip_ = stepper_->poses();
-  reclose();
-  bool free = true;
-  const std::vector<Pose>& X = stepper_->poses();
-  for (size_t b = 0; b < n && free; ++b) {
-    const geo::SweepResult s = collision_.sweep(model_.bodies[b].shape, X_clip_[b], X[b], params_.sweep);
-    countSweep(s);
-    free = !s.hit && !s.started_inside && s.toc >= 1.0;
+  // Where the re-closing would hit, its motion is cut at each body's own TOC and the joints are
+  // re-closed again from there (a path of swept pieces), a bounded number of times.
+  for (int attempt = 0; attempt < kRecloseAttempts; ++attempt) {
+    X_clip_ = stepper_->poses();
+    reclose();
+    bool free = true;
+    const std::vector<Pose>& X = stepper_->poses();
+    for (size_t b = 0; b < n; ++b) {
+      const geo::SweepResult s = collision_.sweep(model_.bodies[b].shape, X_clip_[b], X[b], params_.sweep);
+      countSweep(s);
+      reclose_toc_[b] = s.started_inside ? 0.0 : s.toc;
+      free = free && !s.hit && !s.started_inside && s.toc >= 1.0;
+    }
+    if (free) {
+      ++counters_.per_body_clips;
+      return;
+    }
+    if (attempt + 1 < kRecloseAttempts) {
+      stepper_->setMotion(X_clip_, X);
+      stepper_->interpolate(reclose_toc_.data());
+    }
   }
-  if (free) {
-    ++per_body_clips_;
-    return;
-  }
-  ++uniform_clips_;
+  ++counters_.uniform_clips;
   stepper_->setMotion(X0_, X1_);
   stepper_->interpolate(toc_min);
   reclose();

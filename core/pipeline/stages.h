@@ -42,12 +42,20 @@ inline StepParams pipelineStepParams() {
   return p;
 }
 
+/// The pipeline reads toc, hit and started_inside of its sweeps, never d(toc): it skips the
+/// closest query that would measure it.
+inline geo::SweepParams pipelineSweepParams() {
+  geo::SweepParams p;
+  p.exact_distance = false;
+  return p;
+}
+
 struct PipelineParams {
   StepParams step = pipelineStepParams();  ///< dt here is the frame period
   ContactParams contacts;
   double contact_reach = 0.003;       ///< m, beyond the motion asked for
   double max_reach = 0.02;            ///< m
-  geo::SweepParams sweep;             ///< CCD: stop 25 µm from a surface, tolerance 1 µm
+  geo::SweepParams sweep = pipelineSweepParams();  ///< CCD: stop 25 µm from a surface, tolerance 1 µm
   double max_force_per_contact = 20;  ///< N
   double max_force_per_hand = 60;     ///< N (Σ |f| over the hand's contacts)
   int resolve_iterations = 4;         ///< scene push-out passes (paper §6.2)
@@ -179,6 +187,9 @@ struct SolverCounters {
   /// ran out of iterations (SweepParams::max_iterations: stopped where verified, a hit that
   /// may be none: a friction of the method, counted).
   std::uint64_t sweeps = 0, sweep_iterations = 0, sweeps_capped = 0;
+  /// Clipped rounds: every body to its own TOC (then re-closed, swept), or, where that re-closing
+  /// would hit, the whole hand to TOC_min (HandSolver::clip).
+  std::uint64_t per_body_clips = 0, uniform_clips = 0;
 };
 struct ResolverCounters {
   std::uint64_t frames = 0, clipped_steps = 0, started_inside = 0, forces_clamped = 0, held = 0;
@@ -240,8 +251,9 @@ class HandSolver {
   std::vector<Contact> clip_contacts_;  // scratch: contacts at a clipped pose
   std::vector<unsigned char> blocked_;  // per body: its last sweep hit (gets shell contacts)
   std::vector<double> body_toc_;        // per body: TOC of the last sweep
-  std::vector<Pose> X0_, X1_, X_clip_;  // scratch of clip()
-  std::uint64_t per_body_clips_ = 0, uniform_clips_ = 0;
+  std::vector<Pose> X0_, X1_, X_clip_;
+  std::vector<double> reclose_toc_;     // per body: TOC of the re-closing motion
+  static constexpr int kRecloseAttempts = 3;
   std::vector<Pose> X_start_;
   HandProposal proposal_;
   SolverCounters counters_;
