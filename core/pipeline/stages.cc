@@ -89,6 +89,8 @@ HandSolver::HandSolver(const Scene& scene, const HandModel& model, const Pipelin
   blocked_.assign(model.bodies.size(), 0);
   body_toc_.assign(model.bodies.size(), 1.0);
   reclose_toc_.assign(model.bodies.size(), 1.0);
+  clear_reach_.assign(model.bodies.size(), -1.0);
+  X_clear_.assign(model.bodies.size(), Pose());
   stepper_->reserve(per);
   contacts_.reserve(static_cast<size_t>(per));
   proposal_.loads.reserve(static_cast<size_t>(per));
@@ -208,8 +210,21 @@ void HandSolver::generateContacts(const HandInput& in) {
     // closest-point candidates, which is cheaper.
     ContactParams cp = params_.contacts;
     if (!blocked_[b]) cp.shell = 0.0;
-    collision_.contacts(shape, X[b], static_cast<int>(b), reach, cp, &contacts_);
+    const int added = collision_.contacts(shape, X[b], static_cast<int>(b), reach, cp, &contacts_);
+    // Nothing within `reach` of the body here: a certificate for the rest of this step.
+    clear_reach_[b] = added == 0 ? reach : -1.0;
+    X_clear_[b] = X[b];
   }
+}
+
+bool HandSolver::clearOf(size_t b, const Pose& X_a, const Pose& X_b, double room) const {
+  // No triangle within clear_reach_ of the body at X_clear_; every point of it moves at most
+  // |Δp| + |θ| ρ from there to X_a and on along the motion to X_b (distance is 1-Lipschitz in
+  // the points' displacement), so the motion stays farther than `room` from everything.
+  if (!(clear_reach_[b] > 0.0)) return false;
+  const double rho = geo::boundingRadius(model_.bodies[b].shape);
+  const double moved = askedMotion(X_clear_[b], X_a, rho) + askedMotion(X_a, X_b, rho);
+  return clear_reach_[b] - moved > room;
 }
 
 double HandSolver::sweepLastMotion(bool* started_inside) {
@@ -217,7 +232,8 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
   const std::vector<Pose>& X1 = stepper_->poses();
   double toc = 1.0;
   for (size_t b = 0; b < model_.bodies.size(); ++b) {
-    const geo::SweepResult s = collision_.sweep(model_.bodies[b].shape, X0[b], X1[b], params_.sweep);
+    const geo::SweepResult s = clearOf(b, X0[b], X1[b], sweepRoom()) ? geo::SweepResult{}
+                                                                         : collision_.sweep(model_.bodies[b].shape, X0[b], X1[b], params_.sweep);
     countSweep(s);
     if (s.started_inside) *started_inside = true;
     blocked_[b] = s.hit ? 1 : 0;
@@ -242,9 +258,13 @@ void HandSolver::clip(double toc_min) {
   auto reclose = [&]() {
     clip_contacts_.clear();
     const std::vector<Pose>& X = stepper_->poses();
-    for (size_t b = 0; b < n; ++b)
-      collision_.contacts(model_.bodies[b].shape, X[b], static_cast<int>(b), params_.contact_reach, params_.contacts,
-                          &clip_contacts_);
+    for (size_t b = 0; b < n; ++b) {
+      // The shell's triangles for the bodies whose sweep hit, as in generateContacts.
+      if (clearOf(b, X_clear_[b], X[b], params_.contact_reach)) continue;  // nothing within reach there
+      ContactParams cp = params_.contacts;
+      if (!blocked_[b]) cp.shell = 0.0;
+      collision_.contacts(model_.bodies[b].shape, X[b], static_cast<int>(b), params_.contact_reach, cp, &clip_contacts_);
+    }
     stepper_->reproject(clip_contacts_.data(), static_cast<int>(clip_contacts_.size()));
   };
   X0_ = stepper_->previousPoses();
@@ -258,7 +278,9 @@ void HandSolver::clip(double toc_min) {
     bool free = true;
     const std::vector<Pose>& X = stepper_->poses();
     for (size_t b = 0; b < n; ++b) {
-      const geo::SweepResult s = collision_.sweep(model_.bodies[b].shape, X_clip_[b], X[b], params_.sweep);
+      const geo::SweepResult s = clearOf(b, X_clip_[b], X[b], sweepRoom())
+                                     ? geo::SweepResult{}
+                                     : collision_.sweep(model_.bodies[b].shape, X_clip_[b], X[b], params_.sweep);
       countSweep(s);
       reclose_toc_[b] = s.started_inside ? 0.0 : s.toc;
       free = free && !s.hit && !s.started_inside && s.toc >= 1.0;

@@ -187,6 +187,9 @@ struct SolverCounters {
   /// ran out of iterations (SweepParams::max_iterations: stopped where verified, a hit that
   /// may be none: a friction of the method, counted).
   std::uint64_t sweeps = 0, sweep_iterations = 0, sweeps_capped = 0;
+  /// Of those, the ones answered without a query: the round's contact query had found nothing
+  /// within a reach the motion cannot cross (or no object's box was near).
+  std::uint64_t sweeps_certified = 0;
   /// Clipped rounds: every body to its own TOC (then re-closed, swept), or, where that re-closing
   /// would hit, the whole hand to TOC_min (HandSolver::clip).
   std::uint64_t per_body_clips = 0, uniform_clips = 0;
@@ -227,6 +230,7 @@ class HandSolver {
  private:
   void countSweep(const geo::SweepResult& s) {
     ++counters_.sweeps;
+    if (s.iterations == 0) ++counters_.sweeps_certified;
     counters_.sweep_iterations += static_cast<std::uint64_t>(s.iterations);
     if (s.capped) ++counters_.sweeps_capped;
   }
@@ -253,6 +257,13 @@ class HandSolver {
   std::vector<double> body_toc_;        // per body: TOC of the last sweep
   std::vector<Pose> X0_, X1_, X_clip_;
   std::vector<double> reclose_toc_;     // per body: TOC of the re-closing motion
+  // Per body: nothing was within clear_reach_ (< 0: something was) of it at X_clear_ (this
+  // round's contact query), so motions that stay within that room need no sweep (clearOf).
+  std::vector<double> clear_reach_;
+  std::vector<Pose> X_clear_;
+  bool clearOf(size_t b, const Pose& X_a, const Pose& X_b, double room) const;
+  /// The room a sweep could still stop a body in: its largest stop distance and tolerance.
+  double sweepRoom() const { return params_.sweep.stop_distance + params_.sweep.tolerance; }
   static constexpr int kRecloseAttempts = 3;
   std::vector<Pose> X_start_;
   HandProposal proposal_;

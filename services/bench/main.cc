@@ -365,9 +365,11 @@ int main(int argc, char** argv) {
               static_cast<unsigned long long>(all.substeps), static_cast<unsigned long long>(all.substeps_max), contacts_max,
               kkt_max, static_cast<unsigned long long>(c.solver_failures), static_cast<unsigned long long>(c.inexact_solves),
               static_cast<unsigned long long>(c.lifted_starts), static_cast<unsigned long long>(c.scene_pushouts));
-  std::printf("  sweeps %llu, conservative-advancement iterations %llu (%.2f per sweep), %llu stopped at the iteration bound; "
+  std::printf("  sweeps %llu (%llu answered without a query), conservative-advancement iterations %llu (%.2f per sweep), "
+              "%llu stopped at the iteration bound; "
               "clipped rounds: %llu with each body at its own TOC, %llu with the hand at TOC_min\n",
-              static_cast<unsigned long long>(c.sweeps), static_cast<unsigned long long>(c.sweep_iterations),
+              static_cast<unsigned long long>(c.sweeps), static_cast<unsigned long long>(c.sweeps_certified),
+              static_cast<unsigned long long>(c.sweep_iterations),
               c.sweeps ? static_cast<double>(c.sweep_iterations) / static_cast<double>(c.sweeps) : 0.0,
               static_cast<unsigned long long>(c.sweeps_capped), static_cast<unsigned long long>(c.per_body_clips),
               static_cast<unsigned long long>(c.uniform_clips));
@@ -424,6 +426,7 @@ int main(int argc, char** argv) {
     j["sweep_iterations"] = c.sweep_iterations;
     j["sweeps_capped"] = c.sweeps_capped;
     j["per_body_clips"] = c.per_body_clips;
+    j["sweeps_certified"] = c.sweeps_certified;
     j["uniform_clips"] = c.uniform_clips;
     if (sum.failure.empty()) j["result_hash"] = hex;
     else j["failure"] = sum.failure;

@@ -362,7 +362,9 @@ TEST_F(SupervisorTest, ChildrenGetDefaultSignalDispositions) {
         sigaddset(&block, SIGUSR1);
         ::sigprocmask(SIG_BLOCK, &block, nullptr);
         Supervisor s;
-        s.start({"sig", {"/bin/sh", "-c", "grep -E '^Sig(Ign|Blk)' /proc/$$/status"}, {}, log});
+        // The exec'd grep reads its own status: what the child got (the shell's own mask is
+        // not: dash blocks every signal around its forks, and a grep it forked could read that).
+        s.start({"sig", {"/bin/sh", "-c", "exec grep -E '^Sig(Ign|Blk)' /proc/self/status"}, {}, log});
         const bool done = s.waitExit("sig", kLong);
         std::fprintf(stderr, "%s%s", done ? "" : "timeout\n", readFile(log).c_str());
         std::_Exit(0);
