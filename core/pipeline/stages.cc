@@ -1,6 +1,7 @@
 #include "pipeline/stages.h"
 
 #include <algorithm>
+#include <cstdarg>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -30,10 +31,15 @@ double askedMotion(const Pose& X, const Pose& target, double rho) {
   return std::isfinite(m) ? m : 0.0;
 }
 
-// GODHAND_TRACE=1: per frame and hand on stderr; =2: also every clipping sweep.
-int traceLevel() {
-  const char* t = std::getenv("GODHAND_TRACE");
-  return t ? std::atoi(t) : 0;
+// One diagnostic line to the params' sink (PipelineParams::trace).
+__attribute__((format(printf, 2, 3))) void emit(const PipelineParams& p, const char* fmt, ...) {
+  if (!p.trace_sink) return;
+  char line[512];
+  va_list args;
+  va_start(args, fmt);
+  std::vsnprintf(line, sizeof line, fmt, args);
+  va_end(args);
+  p.trace_sink(line);
 }
 
 PipelineParams prepared(PipelineParams p) {
@@ -83,7 +89,7 @@ bool receivesForces(const SceneObject& object, const PipelineParams& params) {
 // HandSolver
 
 HandSolver::HandSolver(const Scene& scene, const HandModel& model, const PipelineParams& params)
-    : model_(model), params_(prepared(params)), collision_(scene), trace_(traceLevel()) {
+    : model_(model), params_(prepared(params)), collision_(scene), trace_(params_.trace_sink ? params_.trace : 0) {
   stepper_ = std::make_unique<ClusterStepper>(model, params_.step);
   const int per = static_cast<int>(model.bodies.size()) * params_.contacts.per_pair * 4;
   blocked_.assign(model.bodies.size(), 0);
@@ -187,7 +193,7 @@ bool HandSolver::start(const HandInput& in) {
     proposal_.lifted_start = true;
     ++counters_.lifted_starts;
     if (trace_ >= 1)
-      std::fprintf(stderr, "trace: start moved by (%.4f, %.4f, %.4f) m to be free\n", shift.x(), shift.y(), shift.z());
+      emit(params_, "trace: start moved by (%.4f, %.4f, %.4f) m to be free\n", shift.x(), shift.y(), shift.z());
   }
   for (Pose& X : X_start_) X.p += shift;
   stepper_->reset(X_start_);
@@ -239,7 +245,7 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
     blocked_[b] = s.hit ? 1 : 0;
     body_toc_[b] = s.toc;
     if ((trace_ >= 2 && s.toc < 1.0) || trace_ >= 3)
-      std::fprintf(stderr, "trace: body %zu toc %.3g hit %d inside %d it %d d %.3g move %.3g pen0 %.3g pen1 %.3g\n", b, s.toc, s.hit,
+      emit(params_, "trace: body %zu toc %.3g hit %d inside %d it %d d %.3g move %.3g pen0 %.3g pen1 %.3g\n", b, s.toc, s.hit,
                    s.started_inside, s.iterations, s.distance, (X1[b].p - X0[b].p).norm(),
                    collision_.penetration(model_.bodies[b].shape, X0[b]), collision_.penetration(model_.bodies[b].shape, X1[b]));
     toc = std::min(toc, s.toc);
@@ -348,7 +354,7 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     const StepReport& sr = stepper_->step(si);
     ++p.substeps;
     if (trace_ >= 1)
-      std::fprintf(stderr, "trace: frame %llu round %d status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu scale %.3g\n",
+      emit(params_, "trace: frame %llu round %d status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu scale %.3g\n",
                    static_cast<unsigned long long>(frame), p.substeps, static_cast<int>(sr.solve.status),
                    sr.solve.kkt_residual, sr.projection_iterations, sr.joint_errors.gap, sr.rows, sr.flags,
                    contacts_.size(), sr.motion_scale);
@@ -406,7 +412,7 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
 // Resolver
 
 Resolver::Resolver(const Scene& scene, std::vector<const HandModel*> hands, const PipelineParams& params)
-    : params_(prepared(params)), collision_(scene), trace_(traceLevel()) {
+    : params_(prepared(params)), collision_(scene), trace_(params_.trace_sink ? params_.trace : 0) {
   dynamic_.resize(scene.objects.size());
   for (size_t o = 0; o < scene.objects.size(); ++o) dynamic_[o] = receivesForces(scene.objects[o], params_);
   for (const HandModel* m : hands) {
@@ -528,7 +534,7 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
       r.X = p->X_new;
       r.merge_us = usSince(t0);
       if (trace_ >= 1)
-        std::fprintf(stderr, "trace: frame %llu hand %zu rounds %d toc %.3g gap %.3g contacts %d inside %d pen %.3g\n",
+        emit(params_, "trace: frame %llu hand %zu rounds %d toc %.3g gap %.3g contacts %d inside %d pen %.3g\n",
                      static_cast<unsigned long long>(frame), h, p->substeps, r.toc, r.joint_errors.gap, r.contacts,
                      r.started_inside, penetration(static_cast<int>(h)));
       continue;
@@ -583,7 +589,7 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
     if (r.clipped) ++counters_.clipped_steps;
     r.merge_us = usSince(t0);
     if (trace_ >= 1)
-      std::fprintf(stderr, "trace: frame %llu hand %zu toc %.3g gap %.3g contacts %d inside %d pen %.3g\n",
+      emit(params_, "trace: frame %llu hand %zu toc %.3g gap %.3g contacts %d inside %d pen %.3g\n",
                    static_cast<unsigned long long>(frame), h, toc, r.joint_errors.gap, r.contacts, r.started_inside,
                    penetration(static_cast<int>(h)));
   }

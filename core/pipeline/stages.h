@@ -19,6 +19,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -56,6 +57,11 @@ struct PipelineParams {
   double contact_reach = 0.003;       ///< m, beyond the motion asked for
   double max_reach = 0.02;            ///< m
   geo::SweepParams sweep = pipelineSweepParams();  ///< CCD: stop 25 µm from a surface, tolerance 1 µm
+  /// Diagnostic lines: 0 none, 1 per frame and hand (and a moved start), 2 also every clipping
+  /// sweep, 3 every sweep. Each line goes to trace_sink (none: no trace); core writes nowhere
+  /// itself (the services set both from GODHAND_TRACE, to stderr: svc::traceFromEnvironment).
+  int trace = 0;
+  std::function<void(const char* line)> trace_sink;
   double max_force_per_contact = 20;  ///< N
   double max_force_per_hand = 60;     ///< N (Σ |f| over the hand's contacts)
   int resolve_iterations = 4;         ///< scene push-out passes (paper §6.2)

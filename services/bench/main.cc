@@ -19,6 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "runtime/trace_env.h"
 #include "leap/leap_recording.h"
 #include "source/recording.h"
 #include "pipeline/run_metrics.h"
@@ -228,6 +229,7 @@ int main(int argc, char** argv) {
     fail(args.recording + ": frame rate " + std::to_string(rate) +
          " Hz from the timestamps is outside (1, 10000) Hz (timestamps in the wrong unit, repeated or out of order?)");
   PipelineParams params;
+  svc::traceFromEnvironment(&params);
   params.step.dt = 1.0 / rate;
   params.step.solver = args.solver;
   params.step.pgs.sweeps = args.pgs_iterations;

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <map>
 
+#include "runtime/trace_env.h"
 #include "model/hand_model.h"
 #include "runtime/convert.h"
 #include "runtime/live_merge.h"
@@ -49,6 +50,7 @@ int main(int argc, char** argv) {
   std::vector<const HandModel*> model_ptrs;
   Scene scene;
   PipelineParams params;
+  svc::traceFromEnvironment(&params);
   std::unique_ptr<Resolver> resolver;
   try {
     for (size_t c = 0; c < C; ++c) models[c] = HandModel::loadFile(lab.clusters[c].model);

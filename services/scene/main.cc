@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <map>
 
+#include "runtime/trace_env.h"
 #include "physics/physics_world.h"
 #include "runtime/convert.h"
 #include "runtime/scene_resume.h"
@@ -43,6 +44,7 @@ int main(int argc, char** argv) {
   svc::Service service("scene", common, cli);
   Scene scene;
   PipelineParams params;
+  svc::traceFromEnvironment(&params);
   std::unique_ptr<SceneStage> stage;
   int resumed = 0;
   try {

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <map>
 
+#include "runtime/trace_env.h"
 #include "model/hand_model.h"
 #include "runtime/convert.h"
 #include "runtime/lockstep_gate.h"
@@ -51,6 +52,7 @@ int main(int argc, char** argv) {
   HandModel model;
   Scene scene;
   PipelineParams params;
+  svc::traceFromEnvironment(&params);
   std::unique_ptr<HandSolver> solver;
   try {
     model = HandModel::loadFile(cluster->model);
