@@ -94,9 +94,16 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
     for (size_t b = 0; b < n; ++b)
       if (driven(s, b) && s.targets[b].p.allFinite()) to_target = std::max(to_target, (X[b].p - s.targets[b].p).norm());
     if (!s.loaded) hand.free_err.push_back(to_target);
-    // Stuck: not moving, away from the targets, and nothing in the way of going straight there.
+    // Stuck: not moving, away from the targets (farther than the free twin, which is as near as
+    // the model can come: what it cannot represent is model error, not a stuck hand), and
+    // nothing in the way of going straight there.
+    double twin_to_target = 0.0;
+    if (twin)
+      for (size_t b = 0; b < n; ++b)
+        if (driven(s, b) && s.targets[b].p.allFinite())
+          twin_to_target = std::max(twin_to_target, ((*twin)[b].p - s.targets[b].p).norm());
     if (!s.held && !hand.X_prev.empty() && maxBodyDistance(X, hand.X_prev) < MetricThresholds::kGodStill &&
-        to_target > MetricThresholds::kAwayFromTarget) {
+        to_target - twin_to_target > MetricThresholds::kAwayFromTarget) {
       bool path_free = true;
       for (size_t b = 0; b < n && path_free; ++b) {
         if (!driven(s, b) || !isValidPose(s.targets[b], 1e-6)) continue;

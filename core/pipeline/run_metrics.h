@@ -11,9 +11,10 @@
 //                  scores ≤ ~0 (where the twin is outside it coincides with it, where the twin
 //                  sinks d it sits about d away). Median / p95 / max, frames above 5 mm.
 //   frozen         windows of 5 frames in which the twin moves > 2 mm but the God hand < 0.05 mm.
-//   stuck frames   frames in which the God hand moves < 0.05 mm although it is > 1 mm from its
-//                  targets and the straight motion of every driven body to its target is free
-//                  (swept against the scene as it is).
+//   stuck frames   frames in which the God hand moves < 0.05 mm although it is > 1 mm farther
+//                  from its targets than its free twin is (the model's best; without a twin:
+//                  > 1 mm from them) and the straight motion of every driven body to its target
+//                  is free (swept against the scene as it is).
 // Also per hand: penetration (max), joint gap (max), free tracking error (God to target while
 // no contact carries force), frames clipped, frames whose TOC < 1e-3, solve -> sweep rounds.
 //

@@ -301,6 +301,15 @@ LabConfig parseLab(const std::string& text, const std::string& source, const std
     lab.security = (sp.is_absolute() ? sp : base / sp).lexically_normal().string();
   }
 
+  if (msg.has_tracker()) {
+    const pb::Tracker& t = msg.tracker();
+    lab.tracker = {t.pose(), t.units(), t.up(), t.hand_map(), t.palm_offset(), t.tracking_volume_m(), t.max_speed_mps()};
+    if (!std::isfinite(t.tracking_volume_m()) || t.tracking_volume_m() < 0.0)
+      top.fail("tracker.tracking_volume_m", "must be a finite number of metres >= 0 (0 = 50 m), got " + num(t.tracking_volume_m()));
+    if (!std::isfinite(t.max_speed_mps()) || t.max_speed_mps() < 0.0)
+      top.fail("tracker.max_speed_mps", "must be a finite speed >= 0 (0 = 30 m/s), got " + num(t.max_speed_mps()));
+  }
+
   // Services.
   const FieldDescriptor* f_services = msg.GetDescriptor()->FindFieldByName("services");
   std::map<std::string, int> service_index;  // name -> index in the file

@@ -50,6 +50,17 @@ struct LabHost {
   std::string profiles;  ///< absolute path of this host's Fast DDS profiles, or "" = the lab's
 };
 
+/// Lab.tracker: the ingest's calibration defaults, as written (checked by the ingest, which
+/// parses them: bridges::sourceOptions).
+struct LabTracker {
+  std::string pose, units, up, hand_map, palm_offset;
+  double volume_m = 0.0, max_speed = 0.0;
+  bool any() const {
+    return !pose.empty() || !units.empty() || !up.empty() || !hand_map.empty() || !palm_offset.empty() || volume_m != 0.0 ||
+           max_speed != 0.0;
+  }
+};
+
 struct LabConfig {
   std::string file;       ///< absolute path of the lab file (loadLab); parseLab: its source_name
   std::string name;       ///< the file's `name`, or the file's stem when empty
@@ -65,6 +76,7 @@ struct LabConfig {
   std::string discovery_server;      ///< the host running `fastdds discovery`, "" = none
   int discovery_port = 11811;        ///< its UDP port
   std::string security;              ///< the lab PKI's directory on the hosts (absolute), "" = none
+  LabTracker tracker;                ///< Lab.tracker
 
   /// The cluster with that name, nullptr if none.
   const LabCluster* cluster(const std::string& name) const;

@@ -66,6 +66,29 @@ int main(int argc, char** argv) {
 
   svc::Service service("ingest", common, cli);
   const LabConfig& lab = service.lab();
+  // The lab's tracker calibration, where the command line left a field at its default.
+  if (lab.tracker.any()) {
+    bridges::CalibrationText from_lab;
+    from_lab.pose = lab.tracker.pose;
+    from_lab.units = lab.tracker.units;
+    from_lab.up = lab.tracker.up;
+    from_lab.hand_map = lab.tracker.hand_map;
+    from_lab.palm_offset = lab.tracker.palm_offset;
+    from_lab.volume_m = lab.tracker.volume_m;
+    from_lab.max_speed = lab.tracker.max_speed;
+    try {
+      bridges::sourceOptions(from_lab);
+    } catch (const std::exception& e) {
+      cli.fail(lab.file + ": tracker: " + e.what());
+    }
+    if (calib.pose.empty()) calib.pose = from_lab.pose;
+    if (calib.units.empty()) calib.units = from_lab.units;
+    if (calib.up.empty()) calib.up = from_lab.up;
+    if (calib.hand_map.empty()) calib.hand_map = from_lab.hand_map;
+    if (calib.palm_offset.empty()) calib.palm_offset = from_lab.palm_offset;
+    if (calib.volume_m == 0.0) calib.volume_m = from_lab.volume_m;
+    if (calib.max_speed == 0.0) calib.max_speed = from_lab.max_speed;
+  }
   if (source_spec.empty()) source_spec = lab.recording;
   if (source_spec.empty()) cli.fail("no tracker source: give --source or a recording in the lab");
   std::unique_ptr<bridges::TrackerSource> source;

@@ -233,6 +233,25 @@ TEST(LabConfig, InlineValidLabResolvesPaths) {
   EXPECT_EQ(l.clusters[0].model, fs::path(kDeploy + "/models/tool1.pbtxt").lexically_normal().string());
 }
 
+TEST(LabConfig, TrackerCalibration) {
+  const LabConfig l = parseLab(lab("tracker { pose: \"0,0,1,0,0,90\" units: \"cm\" up: \"y\" hand_map: \"0:left\" "
+                                   "tracking_volume_m: 3 max_speed_mps: 12 }\n",
+                                   kOneCluster, kServices),
+                               "inline.pbtxt", kLabDir);
+  EXPECT_TRUE(l.tracker.any());
+  EXPECT_EQ(l.tracker.pose, "0,0,1,0,0,90");
+  EXPECT_EQ(l.tracker.units, "cm");
+  EXPECT_EQ(l.tracker.up, "y");
+  EXPECT_EQ(l.tracker.hand_map, "0:left");
+  EXPECT_EQ(l.tracker.volume_m, 3.0);
+  EXPECT_EQ(l.tracker.max_speed, 12.0);
+  EXPECT_FALSE(parseLab(lab("", kOneCluster, kServices), "inline.pbtxt", kLabDir).tracker.any());
+  const std::string msg = parseError(lab("tracker { max_speed_mps: -1 }\n", kOneCluster, kServices));
+  EXPECT_NE(msg.find("tracker.max_speed_mps"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("got -1"), std::string::npos) << msg;
+  EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+}
+
 TEST(LabConfig, DomainIdRange) {
   EXPECT_EQ(parseLab(lab("domain_id: 232\n", kOneCluster, kServices), "inline.pbtxt", kLabDir).domain_id, 232);
   expectError(lab("domain_id: 4000000000\n", kOneCluster, kServices), 2, "domain_id", "0..232");

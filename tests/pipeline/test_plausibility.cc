@@ -291,5 +291,38 @@ TEST(Plausibility, AHandThatNeverStartsIsAFailedRun) {
   }
 }
 
+// The stuck figure counts a God hand that stays put while its free twin goes to a target it could
+// reach straight (a fed, frozen pose: a second, deliberately stuck "implementation"), and does not
+// count a hand that is where its twin is.
+TEST(Plausibility, StuckFramesCountAHandThatCouldMoveButDoesNot) {
+  Scene scene = sceneOf({meshObject("plate", boxMesh(Vec3(0.5, 0.5, 0.05)), at(0, 0, -1.0))});
+  const HandModel m = bodyModel("sphere { radius: 0.01 }");
+  const PipelineParams p = params(1.0 / 100);
+  Pipeline pipe(scene, {&m}, p);
+  RunMetrics frozen(scene, {&m}, {"probe"}, p), following(scene, {&m}, {"probe"}, p);
+  const Pose still = at(0, 0, 0.1);
+  for (int k = 0; k < 30; ++k) {
+    const Pose target = at(0.002 * k, 0, 0.1);  // 2 mm per frame, nothing in the way
+    const HandInput in{true, &target, nullptr};
+    pipe.step({in});
+    HandSample s;
+    s.started = s.tracked = true;
+    s.targets = &target;
+    s.X = &still;
+    frozen.add(0, s, in, pipe.resolver().collision());
+    s.X = pipe.poses(0).data();
+    following.add(0, s, in, pipe.resolver().collision());
+  }
+  const RunSummary a = frozen.summary(), b = following.summary();
+  std::printf("[figure] stuck frames: a frozen sphere %llu of 30, the pipeline's %llu\n",
+              static_cast<unsigned long long>(a.all.stuck_frames), static_cast<unsigned long long>(b.all.stuck_frames));
+  EXPECT_GE(a.all.stuck_frames, 25u) << "from the frame it is 1 mm behind its twin on, every frame";
+  std::string why;
+  EXPECT_FALSE(plausible(a, &why));
+  EXPECT_NE(why.find("stuck"), std::string::npos) << why;
+  EXPECT_EQ(b.all.stuck_frames, 0u);
+  EXPECT_TRUE(plausible(b, &why)) << why;
+}
+
 }  // namespace
 }  // namespace godhand

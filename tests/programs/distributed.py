@@ -99,6 +99,33 @@ def case_same_hash(recording):
     common_checks(j)
 
 
+def case_lab_tracker(recording):
+    """Lab.tracker calibrates the ingest: a lock-step run of a lab whose tracker sits elsewhere gives
+    the in-process result_hash of godhand-bench --tracker-pose with that pose (and not the hash
+    without it); a bad tracker field in the lab is a one-line start-up error naming it."""
+    pose = "0.01,-0.02,0.03,0,0,20"
+    def lab_with(tracker):
+        text = open(os.path.join(DEPLOY, "lab", "local.pbtxt")).read().replace('"../', '"' + DEPLOY + "/")
+        path = os.path.join(TMP, f"lab-{abs(hash(tracker))}.pbtxt")
+        open(path, "w").write(text + "\ntracker { " + tracker + " }\n")
+        return path
+    hashes = {}
+    for name, extra in (("calibrated", ["--tracker-pose", pose]), ("plain", [])):
+        out = os.path.join(TMP, f"bench-{name}.json")
+        r = run([os.path.join(BIN, "godhand-bench"), "--recording", recording, "--quiet", "--json", out] + extra, 300)
+        check(r.returncode == 0, f"godhand-bench ({name}) ran")
+        hashes[name] = json.load(open(out)).get("result_hash") if r.returncode == 0 else None
+    check(hashes["calibrated"] != hashes["plain"], f"the tracker pose moves the hands ({hashes})")
+    r, j = launch(["--lab", lab_with(f'pose: "{pose}"'), "--lockstep", "--recording", recording, "--check"])
+    check(r.returncode == 0, "godhand-launch --lockstep with the lab's tracker exited 0")
+    check(j.get("result_hash") == hashes["calibrated"],
+          f"lab tracker pose: distributed result_hash {j.get('result_hash')} == godhand-bench --tracker-pose {hashes['calibrated']}")
+    r, j = launch(["--lab", lab_with('pose: "1,2"'), "--lockstep", "--recording", recording])
+    text = r.stdout + r.stderr
+    check(r.returncode != 0 and "tracker:" in text and "result hash" not in text,
+          f"a bad lab tracker pose fails the start-up, saying so (exit {r.returncode})")
+
+
 def case_live(recording):
     # Loss budget 50 %: on a loaded 2-core CI machine the live pipeline was seen to lose 25 % of the
     # frames (the resolver resolves the newest); the counts themselves are checked below.
@@ -544,6 +571,8 @@ try:
         case_hand_kill(ARGS[0], ARGS[1])
     elif CASE == "two-labs":
         case_two_labs(ARGS[0])
+    elif CASE == "lab-tracker":
+        case_lab_tracker(ARGS[0])
     elif CASE == "lockstep-fail":
         case_lockstep_fail(ARGS[0])
     else:
