@@ -90,11 +90,12 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
   c.scene_pushouts = scene_stage_->counters().scene_pushouts;
   c.pushout_unresolved = scene_stage_->counters().pushout_unresolved;
   c.lifted_starts = c.solver_failures = c.inexact_solves = 0;
-  c.sweeps = c.sweep_iterations = c.sweeps_capped = c.per_body_clips = c.uniform_clips = c.sweeps_certified = 0;
+  c.sweeps = c.sweep_iterations = c.sweeps_capped = c.per_body_clips = c.uniform_clips = c.sweeps_certified = c.held_rounds = 0;
   for (const auto& s : solvers_) {
     c.per_body_clips += s->counters().per_body_clips;
     c.uniform_clips += s->counters().uniform_clips;
     c.sweeps_certified += s->counters().sweeps_certified;
+    c.held_rounds += s->counters().held_rounds;
     c.sweeps += s->counters().sweeps;
     c.sweep_iterations += s->counters().sweep_iterations;
     c.sweeps_capped += s->counters().sweeps_capped;

@@ -255,11 +255,13 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
 
 // Clipping a round's motion. First each body to its own TOC (the bodies whose paths are free take
 // their whole motion: one blocked fingertip does not stop the hand), then the joints re-closed
-// against the contacts found there. The re-closing moves bodies too, so it is swept as well; if
-// it hits, every body goes back to TOC_min instead (Algorithm 1) and the joints are re-closed
-// from there. Either way every motion that reaches the result was swept, and every result has
-// closed joints.
-void HandSolver::clip(double toc_min) {
+// against the contacts found there. The re-closing moves bodies too, so it is swept as well;
+// where it would hit, it is cut at each body's own TOC and re-closed again (kRecloseAttempts);
+// then every body goes back to TOC_min instead (Algorithm 1) and the joints are re-closed from
+// there, swept once more; where that too would hit, the round leaves the hand at its start.
+// Every motion that reaches the result was swept, and every result has closed joints. Returns
+// the joint errors of the result.
+JointErrors HandSolver::clip(double toc_min) {
   const size_t n = model_.bodies.size();
   auto reclose = [&]() {
     clip_contacts_.clear();
@@ -293,7 +295,7 @@ void HandSolver::clip(double toc_min) {
     }
     if (free) {
       ++counters_.per_body_clips;
-      return;
+      return stepper_->lastReport().joint_errors;
     }
     if (attempt + 1 < kRecloseAttempts) {
       stepper_->setMotion(X_clip_, X);
@@ -303,7 +305,23 @@ void HandSolver::clip(double toc_min) {
   ++counters_.uniform_clips;
   stepper_->setMotion(X0_, X1_);
   stepper_->interpolate(toc_min);
+  X_clip_ = stepper_->poses();
   reclose();
+  // Swept as well; where even this re-closing would hit, the round leaves the hand where it
+  // started (swept: no motion; closed: a result).
+  const std::vector<Pose>& X = stepper_->poses();
+  for (size_t b = 0; b < n; ++b) {
+    const geo::SweepResult s = clearOf(b, X_clip_[b], X[b], sweepRoom())
+                                   ? geo::SweepResult{}
+                                   : collision_.sweep(model_.bodies[b].shape, X_clip_[b], X[b], params_.sweep);
+    countSweep(s);
+    if (s.hit || s.started_inside || s.toc < 1.0) {
+      ++counters_.held_rounds;
+      stepper_->adoptPoses(X0_);
+      return jointErrors(model_, X0_.data());
+    }
+  }
+  return stepper_->lastReport().joint_errors;
 }
 
 const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
@@ -396,8 +414,7 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     p.clipped = true;
     p.toc = std::min(p.toc, toc);
     t0 = Clock::now();
-    clip(toc);
-    p.joint_errors = stepper_->lastReport().joint_errors;
+    p.joint_errors = clip(toc);
     p.times.integrate_us += usSince(t0);
     if (p.substeps >= params_.max_substeps || stuck_round) break;
   }

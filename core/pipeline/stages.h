@@ -199,6 +199,9 @@ struct SolverCounters {
   /// Clipped rounds: every body to its own TOC (then re-closed, swept), or, where that re-closing
   /// would hit, the whole hand to TOC_min (HandSolver::clip).
   std::uint64_t per_body_clips = 0, uniform_clips = 0;
+  /// Of the rounds at TOC_min, those whose re-closing would hit as well: the round does not move
+  /// the hand (it stays at the round's start).
+  std::uint64_t held_rounds = 0;
 };
 struct ResolverCounters {
   std::uint64_t frames = 0, clipped_steps = 0, started_inside = 0, forces_clamped = 0, held = 0;
@@ -248,7 +251,7 @@ class HandSolver {
   /// body's own TOC in body_toc_.
   double sweepLastMotion(bool* started_inside);
   /// Clips the last motion (METHOD.md §2 step 5): see stages.cc.
-  void clip(double toc_min);
+  JointErrors clip(double toc_min);
 
   const HandModel& model_;
   PipelineParams params_;

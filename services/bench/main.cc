@@ -369,12 +369,12 @@ int main(int argc, char** argv) {
               static_cast<unsigned long long>(c.lifted_starts), static_cast<unsigned long long>(c.scene_pushouts));
   std::printf("  sweeps %llu (%llu answered without a query), conservative-advancement iterations %llu (%.2f per sweep), "
               "%llu stopped at the iteration bound; "
-              "clipped rounds: %llu with each body at its own TOC, %llu with the hand at TOC_min\n",
+              "clipped rounds: %llu with each body at its own TOC, %llu with the hand at TOC_min, %llu left where they started\n",
               static_cast<unsigned long long>(c.sweeps), static_cast<unsigned long long>(c.sweeps_certified),
               static_cast<unsigned long long>(c.sweep_iterations),
               c.sweeps ? static_cast<double>(c.sweep_iterations) / static_cast<double>(c.sweeps) : 0.0,
               static_cast<unsigned long long>(c.sweeps_capped), static_cast<unsigned long long>(c.per_body_clips),
-              static_cast<unsigned long long>(c.uniform_clips));
+              static_cast<unsigned long long>(c.uniform_clips), static_cast<unsigned long long>(c.held_rounds));
   if (!sum.failure.empty()) std::printf("  FAILED RUN: %s\n", sum.failure.c_str());
   char hex[32];
   std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash.h));
@@ -429,6 +429,7 @@ int main(int argc, char** argv) {
     j["sweeps_capped"] = c.sweeps_capped;
     j["per_body_clips"] = c.per_body_clips;
     j["sweeps_certified"] = c.sweeps_certified;
+    j["held_rounds"] = c.held_rounds;
     j["uniform_clips"] = c.uniform_clips;
     if (sum.failure.empty()) j["result_hash"] = hex;
     else j["failure"] = sum.failure;
