@@ -3,6 +3,7 @@
 // --speed), or publishes each frame of a live source (dtrack://HOST:PORT) as it arrives.
 // Lock-step: publishes frame k once every cluster's HandState of frame k-1 is back, so the run
 // goes as fast as the slowest stage allows and is deterministic.
+#include <malloc.h>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -96,6 +97,7 @@ int main(int argc, char** argv) {
   std::vector<std::unique_ptr<leap::Retargeter>> retarget;
   try {
     source = bridges::openSource(source_spec, bridges::sourceOptions(calib, frames));
+    ::malloc_trim(0);  // a recording's JSON document is freed by now: give its pages back (glibc keeps them)
     if (source->live()) {
       if (service.lockstep()) cli.fail("--lockstep needs a recording, not a live source (" + source_spec + ")");
       source->start();  // bind now: a port in use is a configuration error
