@@ -64,8 +64,8 @@ bool handFromLandmarks(const std::array<Vec3, kLandmarks>& p_T, bool right, doub
   if (!std::isfinite(confidence)) return fail(Reject::kNotFinite, why);
   std::array<Vec3, kLandmarks> p;
   for (size_t i = 0; i < p.size(); ++i) {
+    if (p_T[i].cwiseAbs().maxCoeff() > L.max_position_m) return fail(Reject::kOutOfRange, why);  // in the tracker's frame
     p[i] = X_WT * p_T[i];
-    if (p[i].cwiseAbs().maxCoeff() > L.max_position_m) return fail(Reject::kOutOfRange, why);
   }
   if (!(confidence >= 0.0 && confidence <= 1.0)) return fail(Reject::kOutOfRange, why);
   if (!checkBones(p, L)) return fail(Reject::kDegenerate, why);
@@ -108,8 +108,8 @@ bool handFromOpenXr(const std::array<XrJoint, kXrJoints>& j, bool right, double 
     R.col(1) = -(A * Rxr.col(2));  // y (fingers): OpenXR's −Z
     R.col(2) = A * Rxr.col(1);   // z (back of the hand): OpenXR's +Y
     h.X_W_palm.q = (X_WT.q * Quat(R)).normalized();
+    if (xrToT(palm.p).cwiseAbs().maxCoeff() > L.max_position_m) return fail(Reject::kOutOfRange, why);
     h.X_W_palm.p = X_WT * xrToT(palm.p);
-    if (h.X_W_palm.p.cwiseAbs().maxCoeff() > L.max_position_m) return fail(Reject::kOutOfRange, why);
   }
   *out = h;
   return true;

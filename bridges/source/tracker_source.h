@@ -51,7 +51,8 @@ struct SourceOptions {
   double live_rate_hz = 60.0;  ///< nominal rate reported by a live source
   std::size_t max_datagram_bytes = 32768;
   /// Plausibility of every source's hands (after calibration): a hand with a palm or joint
-  /// coordinate beyond max_abs_position_m (the tracking volume, a box about the world origin), or
+  /// coordinate beyond max_abs_position_m (the tracking volume, a box about the tracker's origin
+  /// in its frame T, so that a world placed far away keeps its hands), or
   /// whose palm moved faster than max_speed_mps since the last accepted hand of its side (within
   /// 0.5 s: after a longer gap it is a re-acquisition), is dropped and counted.
   double max_abs_position_m = 50.0;

@@ -71,6 +71,8 @@ const char* kUsage =
     "  --push-out B          share of a contact's deficit under the margin made good per step (default 0.5)\n"
     "  --tracker-pose POSE   tracker to world: x,y,z[,rx,ry,rz degrees | ,qw,qx,qy,qz] (default identity)\n"
     "  --hand-sides MAP      tracker hand id -> side, e.g. 0:left,1:right (DTrack)\n"
+    "  --tracking-volume M   hands with a coordinate beyond M m of the tracker are dropped, counted (default 50)\n"
+    "  --max-speed MPS       palm jumps faster than this are dropped, counted (default 30 m/s)\n"
     "  --quiet               no progress lines\n"
     "  --check               exit 1 unless penetration <= margin, joint gap <= 1e-6 m, no solver failures,\n"
     "                        every hand started and was not held in most of its frames, no stuck frame\n"
@@ -92,6 +94,7 @@ struct Args {
   int per_pair = PipelineParams{}.contacts.per_pair;
   double max_translation = PipelineParams{}.step.max_step_translation;
   double stop_distance = PipelineParams{}.sweep.stop_distance;
+  double tracking_volume = 0.0, max_speed = 0.0;  // 0: the sources' defaults (50 m, 30 m/s)
   int sweep_iterations = PipelineParams{}.sweep.max_iterations;
   double contact_margin = PipelineParams{}.step.rows.margin;
   double push_out = PipelineParams{}.step.rows.contact_beta;
@@ -149,6 +152,8 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--contact-margin") a.contact_margin = parseDouble(f, value(), 0.0, 1e-2);
     else if (f == "--push-out") a.push_out = parseDouble(f, value(), 0.0, 1.0);
     else if (f == "--hand-sides") a.hand_sides = value();
+    else if (f == "--tracking-volume") a.tracking_volume = parseDouble(f, value(), 1e-3, 1e9);
+    else if (f == "--max-speed") a.max_speed = parseDouble(f, value(), 1e-3, 1e9);
     else if (f == "--solver") {
       const std::string s = value();
       if (s == "exact") a.solver = SolverKind::Exact;
@@ -190,6 +195,8 @@ int main(int argc, char** argv) {
     bridges::SourceOptions so;
     if (!args.tracker_pose.empty()) so.X_WT = bridges::parsePose(args.tracker_pose);
     if (!args.hand_sides.empty()) so.hand_sides = bridges::parseHandSides(args.hand_sides);
+    if (args.tracking_volume > 0.0) so.max_abs_position_m = args.tracking_volume;
+    if (args.max_speed > 0.0) so.max_speed_mps = args.max_speed;
     rec = bridges::loadRecording(args.recording, so);
   } catch (const std::exception& e) { fail(e.what()); }
   if (rec.frames.empty()) fail(args.recording + ": no usable frames (" + rec.rejections + ")");
@@ -225,9 +232,9 @@ int main(int argc, char** argv) {
   if (sides.empty()) fail(args.recording + ": no tracked hands (" + rec.rejections + ")");
 
   const double rate = rec.mean_rate_hz;
-  if (!(rate > 1.0 && rate < 10000.0))
+  if (!(rate > 1.0 && rate <= 20000.0))
     fail(args.recording + ": frame rate " + std::to_string(rate) +
-         " Hz from the timestamps is outside (1, 10000) Hz (timestamps in the wrong unit, repeated or out of order?)");
+         " Hz from the timestamps is outside (1, 20000] Hz (timestamps in the wrong unit, repeated or out of order?)");
   PipelineParams params;
   svc::traceFromEnvironment(&params);
   params.step.dt = 1.0 / rate;

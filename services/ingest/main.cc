@@ -53,7 +53,7 @@ int main(int argc, char** argv) {
   cli.option("--hand-map", &calib.hand_map, "MAP", "tracker hand id -> side, e.g. 0:left,1:right (others dropped, counted)");
   cli.option("--palm-offset", &calib.palm_offset, "F,T,P", "DTrack: palm centre from the hand target, m (toward fingers, thumb, palm)");
   cli.option("--max-datagram", &calib.max_datagram, "BYTES", "DTrack: larger datagrams are rejected as oversized (default 32768)");
-  cli.option("--tracking-volume", &calib.volume_m, "M", "hands with a coordinate beyond M metres are dropped, counted (0: 50 m)");
+  cli.option("--tracking-volume", &calib.volume_m, "M", "hands with a coordinate beyond M metres of the tracker (its frame) are dropped, counted (0: 50 m)");
   cli.option("--max-speed", &calib.max_speed, "MPS", "palm jumps faster than this are dropped, counted (0: 30 m/s)");
   cli.option("--frames", &frames, "N", "stop after N frames (0: all)");
   cli.option("--speed", &speed, "X", "live replay speed factor");

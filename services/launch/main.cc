@@ -261,7 +261,7 @@ int main(int argc, char** argv) {
   if (!(deadline >= 0.0 && deadline <= 3600.0)) cli.fail("--deadline must be in [0, 3600] s");
   if (!(loss_budget >= 0.0 && loss_budget <= 1.0)) cli.fail("--loss-budget must be in [0, 1]");
   if (!(duration >= 0.0 && duration <= 86400.0)) cli.fail("--duration must be in [0, 86400] s");
-  if (!(live_rate >= 0.0 && live_rate < 10000.0)) cli.fail("--frame-rate must be in (0, 10000) Hz");
+  if (!(live_rate >= 0.0 && live_rate <= 20000.0)) cli.fail("--frame-rate must be in (0, 20000] Hz");
   if (solver != "exact" && solver != "pgs") cli.fail("--solver must be exact or pgs");
   if (physics_hz < 10 || physics_hz > 100000) cli.fail("--physics-hz must be in [10, 100000]");
   if (domain < -1 || domain > 232) cli.fail("--domain must be in 0..232");

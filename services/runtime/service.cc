@@ -45,7 +45,7 @@ Service::Service(std::string name, const CommonOptions& options, const Cli& cli)
   if (lab_.deadline_s > 3600.0) cli.fail(lab_.file + ": deadline_s must be <= 3600 s");
   if (lab_.stale_after_s > 3600.0) cli.fail(lab_.file + ": stale_after_s must be <= 3600 s");
   if (!(opt_.status_period_s > 0.0 && opt_.status_period_s < 60.0)) cli.fail("--status-period must be in (0, 60) s");
-  if (!(opt_.frame_rate >= 0.0 && opt_.frame_rate < 10000.0)) cli.fail("--frame-rate must be in (0, 10000) Hz");
+  if (!(opt_.frame_rate >= 0.0 && opt_.frame_rate <= 20000.0)) cli.fail("--frame-rate must be in (0, 20000] Hz");
   frame_rate_ = opt_.frame_rate;
   if (frame_rate_ == 0.0) {
     if (lab_.recording.empty()) cli.fail("--frame-rate is required: the lab names no recording");

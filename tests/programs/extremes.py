@@ -1,0 +1,141 @@
+#!/usr/bin/env python3
+"""The extremes of METHOD §6 end to end (issue 14): the whole in-process pipeline (godhand-bench:
+sources, retargeting, solver, sweeps, Bullet) on scripted synthetic hands at the edges of what a
+lab feeds it. Every case must end with exit 0, every God-object pose finite (all of them, from
+--poses), penetration within the contact margin against the full meshes, closed joints, no
+solver failure, the injected bad samples counted, the hand started. Prints one table row per
+case ("extreme:" lines; the README's table).
+
+usage: extremes.py BENCH_BIN"""
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+BENCH = sys.argv[1]
+TMP = tempfile.mkdtemp(prefix="godhand-extremes-")
+failures = []
+
+
+def check(ok, what):
+    print(("ok:     " if ok else "FAILED: ") + what, flush=True)
+    if not ok:
+        failures.append(what)
+
+
+def write(name, text):
+    path = os.path.join(TMP, name)
+    open(path, "w").write(text)
+    return path
+
+
+def box(ident, x, y, z, hx, hy, hz, mass=0.0):
+    return (f'objects {{ id: "{ident}" box {{ half_extents {{ x: {hx!r} y: {hy!r} z: {hz!r} }} }} '
+            f'position {{ x: {x!r} y: {y!r} z: {z!r} }} mass: {mass!r} }}\n')
+
+
+def scene(name, objects):
+    return write(f"{name}.pbtxt", f'name: "{name}"\ngravity {{ z: -9.81 }}\n' + "".join(objects))
+
+
+def script(name, rate, body):
+    return write(f"{name}.txt", f"godhand-synthetic 1\nrate {rate}\n" + body)
+
+
+# The press / slide / lift on a table top at z = 0.11 m (the table of tests/data/synthetic),
+# written around an origin so that it can be placed anywhere.
+def press(x0=0.0, y0=0.0):
+    return (f"start right {x0!r} {y0!r} 0.16\nhold 0.1\nmove right 0.5 {x0!r} {y0!r} 0.08\n"
+            f"move right 0.3 {x0 + 0.1!r} {y0!r} 0.08\nmove right 0.3 {x0 + 0.1!r} {y0!r} 0.2\n")
+
+
+TABLE = box("table", 0, 0, 0.085, 0.4, 0.4, 0.025)
+
+CASES = [
+    # name, recording, scene, extra bench args, what must be counted as rejected (substring)
+    ("press, slide, lift (100 Hz, reference)", script("reference", 100, press()), scene("table", [TABLE]), [], None),
+    ("scene and hand 10 km from the origin", script("far", 100, press()),
+     scene("far", [box("table", 10000.0, 0, 0.085, 0.4, 0.4, 0.025)]), ["--tracker-pose", "10000,0,0"], None),
+    ("target teleported 3 m away and back, into the table", script("teleport", 100,
+     press() + "teleport right 3 0 0.2\nhold 0.3\nteleport right 0 0 0.05\nhold 0.3\n"), scene("table", [TABLE]), [], "speed limit"),
+    ("the same, with the speed limit lifted: the pipeline gets the jumps", script("teleport2", 100,
+     press() + "teleport right 3 0 0.2\nhold 0.3\nteleport right 0 0 0.05\nhold 0.3\n"), scene("table", [TABLE]),
+     ["--max-speed", "1e6"], None),
+    ("1 kHz tracker (dt 1 ms)", script("khz", 1000, press()), scene("table", [TABLE]), [], None),
+    ("20 Hz tracker (dt 50 ms)", script("twenty", 20, press()), scene("table", [TABLE]), [], None),
+    ("10 kHz tracker (dt 0.1 ms)", script("tenk", 10000, "start right 0 0 0.16\nmove right 0.12 0 0 0.08\nhold 0.03\n"),
+     scene("table", [TABLE]), [], None),
+    ("10 Hz tracker (dt 100 ms)", script("ten", 10, press()), scene("table", [TABLE]), [], None),
+    ("NaN bursts (3 x 10 frames)", script("nan", 100,
+     press() + "nan right 10\nhold 0.1\nnan right 10\nhold 0.1\nnan right 10\nhold 0.2\n"), scene("table", [TABLE]), [], "NaN"),
+    ("0.1 mm shell hit at 10 m/s", script("shell", 100, "start right 0 0 0.3\nhold 0.05\nmove right 0.03 0 0 0.0\nhold 0.1\n"),
+     scene("shell", [box("shell", 0, 0, 0.11, 0.4, 0.4, 5e-5)]), [], None),
+    ("mass ratio 1e4 (10 g box on a 100 kg box, pushed)", script("mass", 100,
+     "start right -0.2 0 0.2\nmove right 0.3 -0.2 0 0.16\nmove right 1.0 0.2 0 0.16\nhold 0.2\n"),
+     scene("mass", [TABLE, box("heavy", 0, 0, 0.16, 0.05, 0.05, 0.05, 100.0), box("light", 0, 0, 0.22, 0.01, 0.01, 0.01, 0.01)]),
+     [], None),
+    ("1,000 objects", script("many", 100, "start right -0.3 -0.3 0.2\nmove right 1.0 0.3 0.3 0.12\nhold 0.1\n"),
+     scene("many", [box(f"b{i}", -0.45 + 0.03 * (i % 32), -0.45 + 0.03 * (i // 32), 0.115, 0.006, 0.006, 0.006)
+                    for i in range(1000)] + [TABLE]), [], None),
+]
+
+
+def finite_poses(path):
+    n = bad = 0
+    with open(path) as f:
+        for r in csv.DictReader(f):
+            for k in ("px", "py", "pz", "qw", "qx", "qy", "qz"):
+                n += 1
+                if not math.isfinite(float(r[k])):
+                    bad += 1
+    return n, bad
+
+
+rows = []
+for name, rec, scn, extra, counted in CASES:
+    out, poses = os.path.join(TMP, "r.json"), os.path.join(TMP, "p.csv")
+    for f in (out, poses):
+        if os.path.exists(f):
+            os.remove(f)
+    cmd = [BENCH, "--recording", rec, "--scene", scn, "--json", out, "--poses", poses, "--quiet"] + extra
+    print("$ " + " ".join(cmd), flush=True)
+    t0 = time.time()
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=240)
+    secs = time.time() - t0
+    j = json.load(open(out)) if os.path.exists(out) else {}
+    ok_run = r.returncode == 0 and bool(j)
+    check(ok_run, f"{name}: ran (exit {r.returncode}{': ' + r.stderr.strip()[-200:] if r.returncode else ''})")
+    if not ok_run:
+        rows.append((name, "failed", "", "", "", "", ""))
+        continue
+    n, bad = finite_poses(poses)
+    check(n > 0 and bad == 0, f"{name}: every pose finite ({bad} of {n} numbers not)")
+    pen, gap, margin = j["penetration_max_m"], j["joint_gap_max_m"], j["margin_m"]
+    check(pen <= margin, f"{name}: penetration {pen * 1e3:.4f} mm within the {margin * 1e3:.3f} mm margin")
+    check(gap <= 1e-6, f"{name}: joint gap {gap:.2e} m <= 1e-6")
+    check(j["solver_failures"] == 0, f"{name}: no solver failure ({j['solver_failures']})")
+    started = j["plausibility"]["all"]["started"]
+    check(started > 0, f"{name}: the hand started ({started} frames)")
+    if name.startswith("0.1 mm shell"):
+        # Penetration 0 would also hold for a hand that tunnelled through and ended below: every
+        # God object must end above the shell (its top at z = 0.11005 m; the target went to 0).
+        with open(poses) as f:
+            rows_p = list(csv.DictReader(f))
+        last = max(int(r["frame"]) for r in rows_p)
+        low = min(float(r["pz"]) for r in rows_p if int(r["frame"]) == last)
+        check(low > 0.11005, f"{name}: no tunnelling: the lowest God object ends at z {low:.5f} m, above the shell")
+    rej = j.get("recording_rejections", "")
+    if counted:
+        check(counted in rej, f"{name}: the bad samples were counted ({rej})")
+    rows.append((name, f"{j['frames']}", f"{pen * 1e3:.3f}", f"{gap:.1e}", f"{j['hz_median']:.0f}",
+                 rej if counted else "-", f"{secs:.1f} s"))
+
+print("extreme: | case | frames | penetration mm | joint gap m | Hz median | counted | run |")
+for row in rows:
+    print("extreme: | " + " | ".join(row) + " |")
+print("PASSED" if not failures else f"{len(failures)} check(s) FAILED")
+sys.exit(1 if failures else 0)
