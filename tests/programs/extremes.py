@@ -11,6 +11,7 @@ import csv
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -55,6 +56,24 @@ def press(x0=0.0, y0=0.0):
 
 TABLE = box("table", 0, 0, 0.085, 0.4, 0.4, 0.025)
 
+def scaled_model(factor):
+    """deploy/models/hand16_right.pbtxt scaled by `factor`: every length (box half extents, capsule
+    radius and half length, rest positions, joint anchors) times factor, masses times factor^3;
+    orientations, axes and limits as they are."""
+    src = os.path.join(os.path.dirname(os.path.abspath(BENCH)), "..", "..", "deploy", "models", "hand16_right.pbtxt")
+    out = []
+    for line in open(os.path.normpath(src)):
+        code, hash_, comment = line.partition("#")
+        code = re.sub(r"((?:half_extents|rest_position|anchor_parent|anchor_child) \{ x: )(\S+)( y: )(\S+)( z: )(\S+)( \})",
+                      lambda m: m.group(1) + repr(float(m.group(2)) * factor) + m.group(3) + repr(float(m.group(4)) * factor) +
+                      m.group(5) + repr(float(m.group(6)) * factor) + m.group(7), code)
+        code = re.sub(r"\b(radius|half_length): (\S+)", lambda m: f"{m.group(1)}: {float(m.group(2)) * factor!r}", code)
+        code = re.sub(r"\bmass: (\S+)", lambda m: f"mass: {float(m.group(1)) * factor ** 3!r}", code)
+        code = re.sub(r'name: "hand16_right"', f'name: "hand16_right_x{factor}"', code)
+        out.append(code + hash_ + comment)
+    return write(f"hand_x{factor}.pbtxt", "".join(out))
+
+
 CASES = [
     # name, recording, scene, extra bench args, what must be counted as rejected (substring)
     ("press, slide, lift (100 Hz, reference)", script("reference", 100, press()), scene("table", [TABLE]), [], None),
@@ -78,6 +97,9 @@ CASES = [
      "start right -0.2 0 0.2\nmove right 0.3 -0.2 0 0.16\nmove right 1.0 0.2 0 0.16\nhold 0.2\n"),
      scene("mass", [TABLE, box("heavy", 0, 0, 0.16, 0.05, 0.05, 0.05, 100.0), box("light", 0, 0, 0.22, 0.01, 0.01, 0.01, 0.01)]),
      [], None),
+    ("hand scaled 0.5x", script("small", 100, press()), scene("table", [TABLE]), ["--hand-model", scaled_model(0.5)], None),
+    ("hand scaled 2x", script("large", 100, press(0.0, 0.0).replace("0.16\n", "0.22\n", 1)), scene("table", [TABLE]),
+     ["--hand-model", scaled_model(2.0)], None),
     ("1,000 objects", script("many", 100, "start right -0.3 -0.3 0.2\nmove right 1.0 0.3 0.3 0.12\nhold 0.1\n"),
      scene("many", [box(f"b{i}", -0.45 + 0.03 * (i % 32), -0.45 + 0.03 * (i // 32), 0.115, 0.006, 0.006, 0.006)
                     for i in range(1000)] + [TABLE]), [], None),
