@@ -263,6 +263,14 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
 // the joint errors of the result.
 JointErrors HandSolver::clip(double toc_min) {
   const size_t n = model_.bodies.size();
+  // The re-closing motion of body b, X_clip_[b] -> X_b, swept (or certified free) and counted.
+  auto sweepRecloseOf = [&](size_t b, const Pose& X_b) {
+    const geo::SweepResult s = clearOf(b, X_clip_[b], X_b, sweepRoom())
+                                   ? geo::SweepResult{}
+                                   : collision_.sweep(model_.bodies[b].shape, X_clip_[b], X_b, params_.sweep);
+    countSweep(s);
+    return s;
+  };
   auto reclose = [&]() {
     clip_contacts_.clear();
     const std::vector<Pose>& X = stepper_->poses();
@@ -286,10 +294,7 @@ JointErrors HandSolver::clip(double toc_min) {
     bool free = true;
     const std::vector<Pose>& X = stepper_->poses();
     for (size_t b = 0; b < n; ++b) {
-      const geo::SweepResult s = clearOf(b, X_clip_[b], X[b], sweepRoom())
-                                     ? geo::SweepResult{}
-                                     : collision_.sweep(model_.bodies[b].shape, X_clip_[b], X[b], params_.sweep);
-      countSweep(s);
+      const geo::SweepResult s = sweepRecloseOf(b, X[b]);
       reclose_toc_[b] = s.started_inside ? 0.0 : s.toc;
       free = free && !s.hit && !s.started_inside && s.toc >= 1.0;
     }
@@ -311,10 +316,7 @@ JointErrors HandSolver::clip(double toc_min) {
   // started (swept: no motion; closed: a result).
   const std::vector<Pose>& X = stepper_->poses();
   for (size_t b = 0; b < n; ++b) {
-    const geo::SweepResult s = clearOf(b, X_clip_[b], X[b], sweepRoom())
-                                   ? geo::SweepResult{}
-                                   : collision_.sweep(model_.bodies[b].shape, X_clip_[b], X[b], params_.sweep);
-    countSweep(s);
+    const geo::SweepResult s = sweepRecloseOf(b, X[b]);
     if (s.hit || s.started_inside || s.toc < 1.0) {
       ++counters_.held_rounds;
       stepper_->adoptPoses(X0_);
