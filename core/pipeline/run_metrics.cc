@@ -89,6 +89,12 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
   sum.joint_gap_max_m = std::max(sum.joint_gap_max_m, s.joint_gap);
 
   const bool has_targets = s.tracked && s.targets;
+  // The twin's distance to the targets: the model error (what the model cannot follow), also
+  // the yardstick of "stuck" below.
+  double model_err = 0.0;
+  if (twin && has_targets)
+    for (size_t b = 0; b < n; ++b)
+      if (driven(s, b) && s.targets[b].p.allFinite()) model_err = std::max(model_err, ((*twin)[b].p - s.targets[b].p).norm());
   if (has_targets) {
     double to_target = 0.0;
     for (size_t b = 0; b < n; ++b)
@@ -97,13 +103,8 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
     // Stuck: not moving, away from the targets (farther than the free twin, which is as near as
     // the model can come: what it cannot represent is model error, not a stuck hand), and
     // nothing in the way of going straight there.
-    double twin_to_target = 0.0;
-    if (twin)
-      for (size_t b = 0; b < n; ++b)
-        if (driven(s, b) && s.targets[b].p.allFinite())
-          twin_to_target = std::max(twin_to_target, ((*twin)[b].p - s.targets[b].p).norm());
     if (!s.held && !hand.X_prev.empty() && maxBodyDistance(X, hand.X_prev) < MetricThresholds::kGodStill &&
-        to_target - twin_to_target > MetricThresholds::kAwayFromTarget) {
+        to_target - model_err > MetricThresholds::kAwayFromTarget) {
       bool path_free = true;
       for (size_t b = 0; b < n && path_free; ++b) {
         if (!driven(s, b) || !isValidPose(s.targets[b], 1e-6)) continue;
@@ -114,12 +115,8 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
     }
   }
   if (twin && has_targets) {
-    double model_err = 0.0, depth = 0.0;
-    for (size_t b = 0; b < n; ++b) {
-      if (driven(s, b) && s.targets[b].p.allFinite())
-        model_err = std::max(model_err, ((*twin)[b].p - s.targets[b].p).norm());
-      depth = std::max(depth, world.penetration(m.bodies[b].shape, (*twin)[b]));
-    }
+    double depth = 0.0;
+    for (size_t b = 0; b < n; ++b) depth = std::max(depth, world.penetration(m.bodies[b].shape, (*twin)[b]));
     hand.model_err.push_back(model_err);
     const double e = maxBodyDistance(X, *twin) - depth;
     hand.lag.push_back(e);

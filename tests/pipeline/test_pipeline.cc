@@ -14,17 +14,12 @@
 #include "pipeline/pipeline.h"
 #include "scene/mesh_io.h"
 #include "scene/scene.h"
+#include "probe_model.h"
 
 namespace godhand {
 namespace {
 
-HandModel probeModel(const std::string& shape_text, double mass = 0.02) {
-  const std::string text = "name: \"probe\"\nbodies {\n  name: \"probe\"\n  " + shape_text +
-                           "\n  mass: " + std::to_string(mass) +
-                           "\n  rest_position { x: 0 y: 0 z: 0 }\n  rest_orientation { w: 1 x: 0 y: 0 z: 0 }\n"
-                           "  tracker_segment: \"probe\"\n}\n";
-  return HandModel::fromText(text, "probe");
-}
+HandModel probeModel(const std::string& shape_text, double mass = 0.02) { return testing::probeModel(shape_text, mass); }
 
 SceneObject boxObject(const std::string& id, const Vec3& half, const Pose& X_WO, double mass) {
   SceneObject o;

@@ -15,17 +15,12 @@
 #include "pipeline/run_metrics.h"
 #include "scene/mesh_io.h"
 #include "scene/scene.h"
+#include "probe_model.h"
 
 namespace godhand {
 namespace {
 
-HandModel bodyModel(const std::string& shape_text, double mass = 0.05) {
-  const std::string text = "name: \"probe\"\nbodies {\n  name: \"probe\"\n  " + shape_text +
-                           "\n  mass: " + std::to_string(mass) +
-                           "\n  rest_position { x: 0 y: 0 z: 0 }\n  rest_orientation { w: 1 x: 0 y: 0 z: 0 }\n"
-                           "  tracker_segment: \"probe\"\n}\n";
-  return HandModel::fromText(text, "probe");
-}
+HandModel bodyModel(const std::string& shape_text, double mass = 0.05) { return testing::probeModel(shape_text, mass); }
 
 SceneObject meshObject(const std::string& id, geo::TriangleMesh mesh, const Pose& X_WO) {
   SceneObject o;
