@@ -184,8 +184,17 @@ geo::SweepResult CollisionWorld::sweep(const Shape& shape, const Pose& X_W0, con
     const Pose X_WOinv = o.X_WO.inverse();
     const geo::SweepResult r = geo::sweep(shape, X_WOinv * X_W0, X_WOinv * X_W1, *o.god, params);
     total_iterations += r.iterations;
-    if (r.started_inside) {  // cannot be clipped; reported, resolved by push-out contacts
+    if (r.started_inside) {
+      // Inside: no time of contact to find (resolved by push-out contacts). It may recede or
+      // slide in there, never go deeper: a motion that takes it deeper (the exact depth at the
+      // end or at the quarter points along it) does not move at all.
       best.started_inside = true;
+      if (deeperAlong(o, shape, X_W0, X_W1)) {
+        best.toc = 0.0;
+        best.hit = true;
+        best.distance = 0.0;
+        if (object_hit) *object_hit = static_cast<int>(oi);
+      }
       continue;
     }
     if (r.toc < best.toc || (r.hit && !best.hit && r.toc <= best.toc)) {
@@ -201,6 +210,53 @@ geo::SweepResult CollisionWorld::sweep(const Shape& shape, const Pose& X_W0, con
   return best;
 }
 
+double CollisionWorld::depthIn(const Object& o, const Shape& shape, const Pose& X_WB) const {
+  const Pose X_OB = o.X_WO.inverse() * X_WB;
+  double depth = 0.0;
+  geo::NearTriangle c;
+  const geo::Aabb& rb = o.reference->bounds();
+  auto in_box = [&](const Vec3& p) { return (p.array() >= rb.lo.array()).all() && (p.array() <= rb.hi.array()).all(); };
+  if (in_box(X_OB.p) && o.reference->inside(X_OB.p)) {
+    o.reference->closest(shape, X_OB, kInf, &c);
+    depth = c.closest.core_distance + geo::coreRadius(shape);
+  } else if (o.reference->closest(shape, X_OB, 0.0, &c)) {
+    depth = std::max(0.0, -c.closest.distance);
+    if (c.closest.core_distance <= 0.0) {
+      // The core itself crosses the surface: the shell overlap (r) understates it. The depth
+      // is that of the core's deepest extreme point inside (a capsule's ends, a box's
+      // corners) plus the radius.
+      Vec3 pts[8];
+      int np = 0;
+      if (shape.type == ShapeType::Capsule) {
+        const Vec3 h = X_OB.q * Vec3(0, 0, shape.half_length);
+        pts[np++] = X_OB.p + h;
+        pts[np++] = X_OB.p - h;
+      } else if (shape.type == ShapeType::Box) {
+        for (int k = 0; k < 8; ++k)
+          pts[np++] = X_OB * Vec3((k & 1) ? 1 : -1, (k & 2) ? 1 : -1, (k & 4) ? 1 : -1).cwiseProduct(shape.half_extents);
+      }
+      Shape point;
+      point.type = ShapeType::Sphere;
+      point.radius = 0.0;
+      for (int k = 0; k < np; ++k) {
+        if (!in_box(pts[k]) || !o.reference->inside(pts[k])) continue;
+        geo::NearTriangle e;
+        if (o.reference->closest(point, Pose{pts[k], Quat::Identity()}, kInf, &e))
+          depth = std::max(depth, e.closest.core_distance + geo::coreRadius(shape));
+      }
+    }
+  }
+  return depth;
+}
+
+bool CollisionWorld::deeperAlong(const Object& o, const Shape& shape, const Pose& X_W0, const Pose& X_W1) const {
+  if (!o.reference) return false;
+  const double d0 = depthIn(o, shape, X_W0);
+  for (int k = 1; k <= 4; ++k)
+    if (depthIn(o, shape, geo::interpolateMotion(X_W0, X_W1, 0.25 * k)) > d0 + kDeeperTolerance) return true;
+  return false;
+}
+
 double CollisionWorld::penetration(const Shape& shape, const Pose& X_WB, int* object) const {
   double deepest = 0.0;
   if (object) *object = -1;
@@ -208,41 +264,7 @@ double CollisionWorld::penetration(const Shape& shape, const Pose& X_WB, int* ob
   for (size_t oi = 0; oi < objects_.size(); ++oi) {
     const Object& o = objects_[oi];
     if (!o.reference || !o.ref_box_W.overlaps(box)) continue;
-    const Pose X_OB = o.X_WO.inverse() * X_WB;
-    double depth = 0.0;
-    geo::NearTriangle c;
-    const geo::Aabb& rb = o.reference->bounds();
-    auto in_box = [&](const Vec3& p) { return (p.array() >= rb.lo.array()).all() && (p.array() <= rb.hi.array()).all(); };
-    if (in_box(X_OB.p) && o.reference->inside(X_OB.p)) {
-      o.reference->closest(shape, X_OB, kInf, &c);
-      depth = c.closest.core_distance + geo::coreRadius(shape);
-    } else if (o.reference->closest(shape, X_OB, 0.0, &c)) {
-      depth = std::max(0.0, -c.closest.distance);
-      if (c.closest.core_distance <= 0.0) {
-        // The core itself crosses the surface: the shell overlap (r) understates it. The depth
-        // is that of the core's deepest extreme point inside (a capsule's ends, a box's
-        // corners) plus the radius.
-        Vec3 pts[8];
-        int np = 0;
-        if (shape.type == ShapeType::Capsule) {
-          const Vec3 h = X_OB.q * Vec3(0, 0, shape.half_length);
-          pts[np++] = X_OB.p + h;
-          pts[np++] = X_OB.p - h;
-        } else if (shape.type == ShapeType::Box) {
-          for (int k = 0; k < 8; ++k)
-            pts[np++] = X_OB * Vec3((k & 1) ? 1 : -1, (k & 2) ? 1 : -1, (k & 4) ? 1 : -1).cwiseProduct(shape.half_extents);
-        }
-        Shape point;
-        point.type = ShapeType::Sphere;
-        point.radius = 0.0;
-        for (int k = 0; k < np; ++k) {
-          if (!in_box(pts[k]) || !o.reference->inside(pts[k])) continue;
-          geo::NearTriangle e;
-          if (o.reference->closest(point, Pose{pts[k], Quat::Identity()}, kInf, &e))
-            depth = std::max(depth, e.closest.core_distance + geo::coreRadius(shape));
-        }
-      }
-    }
+    const double depth = depthIn(o, shape, X_WB);
     if (depth > deepest) {
       deepest = depth;
       if (object) *object = static_cast<int>(oi);

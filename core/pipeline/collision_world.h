@@ -72,6 +72,12 @@ class CollisionWorld {
   double signedDistance(int object, const Shape& shape, const Pose& X_WB, double range, Vec3* n_W) const;
 
  private:
+  struct Object;
+  /// Exact depth (≥ 0, m) of the shape in one object's reference mesh.
+  double depthIn(const Object& o, const Shape& shape, const Pose& X_WB) const;
+  /// A motion of a body that starts inside `o` ends, or passes a quarter point, deeper in it.
+  bool deeperAlong(const Object& o, const Shape& shape, const Pose& X_W0, const Pose& X_W1) const;
+  static constexpr double kDeeperTolerance = 1e-9;  ///< m: round-off of the depth
   struct Object {
     const geo::MeshBvh* god = nullptr;
     const geo::MeshBvh* reference = nullptr;

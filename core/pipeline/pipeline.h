@@ -77,6 +77,7 @@ struct PipelineCounters {
                 inexact_solves = 0, forces_clamped = 0, scene_pushouts = 0, pushout_unresolved = 0;
   std::uint64_t sweeps = 0, sweep_iterations = 0, sweeps_capped = 0;  ///< the solvers' (SolverCounters)
   std::uint64_t per_body_clips = 0, uniform_clips = 0, sweeps_certified = 0, held_rounds = 0;
+  std::uint64_t rounds_shortened = 0, rounds_kept = 0;  ///< the solvers' (SolverCounters)
 };
 
 class Pipeline {

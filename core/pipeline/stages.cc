@@ -298,6 +298,7 @@ JointErrors HandSolver::clip(double toc_min) {
       reclose_toc_[b] = s.started_inside ? 0.0 : s.toc;
       free = free && !s.hit && !s.started_inside && s.toc >= 1.0;
     }
+    free = free && jointsClosed(stepper_->lastReport().joint_errors, params_.step);
     if (free) {
       ++counters_.per_body_clips;
       return stepper_->lastReport().joint_errors;
@@ -315,9 +316,9 @@ JointErrors HandSolver::clip(double toc_min) {
   // Swept as well; where even this re-closing would hit, the round leaves the hand where it
   // started (swept: no motion; closed: a result).
   const std::vector<Pose>& X = stepper_->poses();
-  for (size_t b = 0; b < n; ++b) {
-    const geo::SweepResult s = sweepRecloseOf(b, X[b]);
-    if (s.hit || s.started_inside || s.toc < 1.0) {
+  for (size_t b = 0; b <= n; ++b) {
+    const geo::SweepResult s = b < n ? sweepRecloseOf(b, X[b]) : geo::SweepResult{};
+    if (s.hit || s.started_inside || s.toc < 1.0 || (b == n && !jointsClosed(stepper_->lastReport().joint_errors, params_.step))) {
       ++counters_.held_rounds;
       stepper_->adoptPoses(X0_);
       return jointErrors(model_, X0_.data());
@@ -388,6 +389,8 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     p.joint_errors = sr.joint_errors;
     if (sr.flags & kFlagSolverFailed) ++counters_.solver_failures;
     if (sr.flags & kFlagSolverInexact) ++counters_.inexact_solves;
+    if (sr.shortened > 0) ++counters_.rounds_shortened;
+    if (sr.shortened > 0 && (sr.flags & kFlagStateKept)) ++counters_.rounds_kept;
     // The multipliers of the last round are the forces of this frame.
     p.loads.clear();
     for (size_t i = 0; i < contacts_.size(); ++i) {
@@ -586,7 +589,7 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
       hand.stepper->reproject(hand.contacts.data(), static_cast<int>(hand.contacts.size()));
       // The re-closing moves bodies too: swept as well. Where it would hit, the hand stays at its
       // last result this frame (swept: no motion), as a solver's round that cannot move would.
-      bool free = true;
+      bool free = jointsClosed(hand.stepper->lastReport().joint_errors, params_.step);
       const std::vector<Pose>& Xr = hand.stepper->poses();
       for (size_t b = 0; b < n && free; ++b) {
         const geo::SweepResult s = collision_.sweep(hand.model->bodies[b].shape, hand.X_toc[b], Xr[b], params_.sweep);

@@ -189,6 +189,9 @@ struct SceneSnapshot {
 
 struct SolverCounters {
   std::uint64_t steps = 0, lifted_starts = 0, solver_failures = 0, inexact_solves = 0;
+  /// Rounds whose motion was halved because its projection opened the joints, and of those the
+  /// ones that kept the previous state (ClusterStepper::kShortenings halvings did not close).
+  std::uint64_t rounds_shortened = 0, rounds_kept = 0;
   /// Body sweeps, their conservative-advancement iterations (every object), and the sweeps that
   /// ran out of iterations (SweepParams::max_iterations: stopped where verified, a hit that
   /// may be none: a friction of the method, counted).

@@ -266,7 +266,28 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
     X_W_[i] = poseUpdate(X_W_[i], sol_.z[i], dt2);
   }
   const auto t4 = Clock::now();
+  X_integrated_ = X_W_;
   report_.projection_iterations = project(in, true, X_prev_, false);
+  // A step whose projection leaves the joints more open than they were is not a hand (the
+  // Newton projection can diverge when a body's contacts, e.g. the exits of a body that started
+  // inside an object, conflict with its joints; seen live: gaps of 0.3 m). The motion is halved
+  // and projected again, kShortenings times; then the previous state is kept (below).
+  const JointErrors before = jointErrors(model_, X_prev_.data());
+  auto opened = [&] {
+    return params_.projection_iterations > 0 && !jointsClosed(report_.joint_errors, params_) &&
+           std::max(report_.joint_errors.gap, report_.joint_errors.lock) > std::max(before.gap, before.lock);
+  };
+  report_.shortened = 0;
+  for (double scale = 0.5; opened() && report_.shortened < kShortenings; scale *= 0.5) {
+    ++report_.shortened;
+    for (int b = 0; b < n; ++b) {
+      const size_t i = static_cast<size_t>(b);
+      X_W_[i] = poseUpdate(X_prev_[i], poseDifference(X_integrated_[i], X_prev_[i]), scale);
+    }
+    report_.projection_iterations += project(in, false, X_prev_, false);
+  }
+  if (report_.shortened > 0) ++counters_.shortened_steps;
+  const bool still_open = opened();
   const auto t5 = Clock::now();
 
   bool finite = true;
@@ -277,9 +298,15 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
     ++counters_.states_kept;
     report_.joint_errors = jointErrors(model_, X_W_.data());  // project() measured the discarded poses
   }
-  if (params_.projection_iterations > 0 &&
-      std::max(report_.joint_errors.gap, report_.joint_errors.lock) > 1e3 * params_.projection_tolerance)
+  if (params_.projection_iterations > 0 && !jointsClosed(report_.joint_errors, params_)) {
     report_.flags |= kFlagProjectionIncomplete;
+    if (still_open) {  // shortened kShortenings times and still opening the joints: no motion
+      X_W_ = X_prev_;
+      report_.flags |= kFlagStateKept;
+      ++counters_.states_kept;
+      report_.joint_errors = before;
+    }
+  }
   for (int i = 0; i < nc; ++i) {
     const int r = contact_row_[static_cast<size_t>(i)];
     if (r >= 0) lambda_contacts_[static_cast<size_t>(i)] = sol_.lambda[static_cast<size_t>(r)];

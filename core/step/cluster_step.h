@@ -25,6 +25,7 @@
 // than seen before). Bad inputs inside the step are counted and flagged, never thrown.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -72,9 +73,15 @@ enum StepFlag : std::uint32_t {
   kFlagRejectedContact = 1u << 1,  ///< a contact was malformed and ignored
   kFlagSolverFailed = 1u << 2,     ///< numerical failure: the previous state was kept
   kFlagSolverInexact = 1u << 3,    ///< iteration limit / stalled: result used, KKT not met
-  kFlagStateKept = 1u << 4,        ///< the step produced non-finite poses: previous state kept
+  kFlagStateKept = 1u << 4,        ///< the step produced non-finite poses, or opened the joints: previous state kept
   kFlagProjectionIncomplete = 1u << 5,  ///< joint error above tolerance after projection
 };
+
+/// Joints closed well enough to be a hand: gap and lock within 1000 × the projection tolerance
+/// (what kFlagProjectionIncomplete marks when not). Every accepted motion ends closed.
+inline bool jointsClosed(const JointErrors& e, const StepParams& p) {
+  return std::max(e.gap, e.lock) <= 1e3 * p.projection_tolerance;
+}
 
 struct StageTimes {
   double coupling_us = 0, assembly_us = 0, solve_us = 0, integrate_us = 0, project_us = 0;
@@ -92,12 +99,13 @@ struct StepReport {
   double free_motion_scale = 1.0;   ///< the scale of the bodies away from contacts
   std::uint32_t flags = 0;
   int rejected_targets = 0, rejected_contacts = 0;
+  int shortened = 0;                ///< halvings of a motion whose projection opened the joints (0: none)
 };
 
 /// Counters over the stepper's lifetime (printed by services on exit).
 struct StepCounters {
   std::uint64_t steps = 0, rejected_targets = 0, rejected_contacts = 0, solver_failures = 0,
-                inexact_solves = 0, states_kept = 0;
+                inexact_solves = 0, states_kept = 0, shortened_steps = 0;
 };
 
 struct StepInput {
@@ -109,6 +117,9 @@ struct StepInput {
 
 class ClusterStepper {
  public:
+  /// Halvings of a step's motion whose projection would open the joints, before the previous
+  /// state is kept instead (kFlagStateKept).
+  static constexpr int kShortenings = 3;
   /// Throws std::invalid_argument on bad parameters. The model must outlive the stepper.
   ClusterStepper(const HandModel& model, StepParams params);
 
@@ -162,7 +173,7 @@ class ClusterStepper {
 
   const HandModel& model_;
   StepParams params_;
-  std::vector<Pose> X_W_, X_prev_, X_ref_, last_target_, goal_;
+  std::vector<Pose> X_W_, X_prev_, X_ref_, last_target_, goal_, X_integrated_;
   std::vector<unsigned char> has_last_target_;
   QpProblem qp_, proj_;
   QpSolution sol_, proj_sol_;

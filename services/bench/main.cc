@@ -376,12 +376,14 @@ int main(int argc, char** argv) {
               static_cast<unsigned long long>(c.lifted_starts), static_cast<unsigned long long>(c.scene_pushouts));
   std::printf("  sweeps %llu (%llu answered without a query), conservative-advancement iterations %llu (%.2f per sweep), "
               "%llu stopped at the iteration bound; "
-              "clipped rounds: %llu with each body at its own TOC, %llu with the hand at TOC_min, %llu left where they started\n",
+              "clipped rounds: %llu with each body at its own TOC, %llu with the hand at TOC_min, %llu left where they started; "
+              "rounds whose projection opened the joints: %llu shortened, %llu of them kept the last state\n",
               static_cast<unsigned long long>(c.sweeps), static_cast<unsigned long long>(c.sweeps_certified),
               static_cast<unsigned long long>(c.sweep_iterations),
               c.sweeps ? static_cast<double>(c.sweep_iterations) / static_cast<double>(c.sweeps) : 0.0,
               static_cast<unsigned long long>(c.sweeps_capped), static_cast<unsigned long long>(c.per_body_clips),
-              static_cast<unsigned long long>(c.uniform_clips), static_cast<unsigned long long>(c.held_rounds));
+              static_cast<unsigned long long>(c.uniform_clips), static_cast<unsigned long long>(c.held_rounds),
+              static_cast<unsigned long long>(c.rounds_shortened), static_cast<unsigned long long>(c.rounds_kept));
   if (!sum.failure.empty()) std::printf("  FAILED RUN: %s\n", sum.failure.c_str());
   char hex[32];
   std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash.h));
@@ -426,6 +428,8 @@ int main(int argc, char** argv) {
     j["kkt_residual_max"] = kkt_max;
     j["solver_failures"] = c.solver_failures;
     j["inexact_solves"] = c.inexact_solves;
+    j["rounds_shortened"] = c.rounds_shortened;
+    j["rounds_kept"] = c.rounds_kept;
     j["clipped_steps"] = c.clipped_steps;
     j["lifted_starts"] = c.lifted_starts;
     j["started_inside"] = c.started_inside;

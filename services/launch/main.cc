@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <dirent.h>
 #include <fstream>
+#include <deque>
 #include <map>
 #include <set>
 #include <sstream>
@@ -575,7 +576,7 @@ int main(int argc, char** argv) {
 
   Clock::time_point t_first_state{}, t_last_state{};
   bool run_over = false;  // the ingest is done: held hands re-published after the run are not counted
-  auto measure = [&](const msg::HandState& h, const SceneSnapshot* snap, double lat_us, bool stale_rx) {
+  auto measure = [&](const msg::HandState& h, const SceneSnapshot* snap, double lat_us, bool stale_rx, bool own_scene) {
     if (h.held() && run_over) return;
     if (!h.held() && !stale_rx) {
       if (t_first_state == Clock::time_point{}) t_first_state = Clock::now();
@@ -606,13 +607,30 @@ int main(int argc, char** argv) {
       ++rep.penetration_unscored;  // the scene's last poses are not where its objects are now
     } else {
       double pen = 0;
+      long deepest = -1;
       for (size_t b = 0; b < h.poses().size() && b < h.shapes().size(); ++b) {
         Shape s;
         s.type = static_cast<ShapeType>(std::min<int>(h.shapes()[b].type(), 2));
         s.radius = h.shapes()[b].radius();
         s.half_length = h.shapes()[b].half_length();
         s.half_extents = Vec3(h.shapes()[b].half_extents()[0], h.shapes()[b].half_extents()[1], h.shapes()[b].half_extents()[2]);
-        pen = std::max(pen, world.penetration(s, svc::fromWire(h.poses()[b])));
+        const double pb = world.penetration(s, svc::fromWire(h.poses()[b]));
+        if (pb > pen) {
+          pen = pb;
+          deepest = static_cast<long>(b);
+        }
+      }
+      if (pen > rep.penetration_max_m) {
+        RunReport::Worst& w = rep.penetration_worst;
+        w.hand = h.hand();
+        w.body = deepest;
+        w.frame = h.stamp().frame();
+        w.scene_step = h.scene_step();
+        w.own_scene = own_scene;
+        w.tracked = h.tracked();
+        w.stale = stale_rx;
+        w.toc = h.toc();
+        w.replay_s = replayS();
       }
       rep.penetration_max_m = std::max(rep.penetration_max_m, pen);
       window_pen = std::max(window_pen, pen);
@@ -654,6 +672,34 @@ int main(int argc, char** argv) {
       metrics->add(static_cast<int>(c), s, in, world);
     }
     if (h.tracked()) rep.kkt_max = std::max(rep.kkt_max, h.kkt());
+  };
+  // Live: a HandState is scored once the scene state it was resolved against has arrived here
+  // too (the scene's and the resolver's samples take different ways); in arrival order. Scored
+  // against the newest scene state instead (and counted so) when its own cannot come any more:
+  // an older step that is not kept, or not here 0.5 s after the hand state.
+  struct Awaiting {
+    msg::HandState h;
+    double lat_us;
+    bool stale_rx;
+    Clock::time_point at;
+  };
+  std::deque<Awaiting> awaiting;
+  auto scoreAwaiting = [&](bool flush) {
+    while (!awaiting.empty()) {
+      const Awaiting& a = awaiting.front();
+      const SceneSnapshot* own = nullptr;
+      bool own_state = false;
+      if (!recent_scenes.empty()) {
+        const auto it = recent_scenes.find(a.h.scene_step());
+        const std::uint64_t newest = recent_scenes.rbegin()->first;
+        if (it == recent_scenes.end() && a.h.scene_step() > newest && !flush && secondsSince(a.at) < 0.5) break;  // not here yet
+        own_state = it != recent_scenes.end();
+        own = own_state ? &it->second : &recent_scenes.rbegin()->second;
+        if (a.h.started() && !a.h.held() && !scene_down) ++(own_state ? rep.penetration_own_scene : rep.penetration_newest_scene);
+      }
+      measure(a.h, own, a.lat_us, a.stale_rx, own_state);
+      awaiting.pop_front();
+    }
   };
   auto setSceneDown = [&](bool down) {
     if (down == scene_down) return;
@@ -706,13 +752,17 @@ int main(int argc, char** argv) {
       if (lockstep) {
         scenes[snap.frame] = snap;
       } else {
-        if (!recent_scenes.empty() && snap.step <= recent_scenes.rbegin()->first) recent_scenes.clear();  // a new scene run
+        if (!recent_scenes.empty() && snap.step <= recent_scenes.rbegin()->first) {  // a new scene run
+          scoreAwaiting(true);  // the states resolved against the old run's steps: scored with its history
+          recent_scenes.clear();
+        }
         recent_scenes[snap.step] = snap;
         while (recent_scenes.size() > 256) recent_scenes.erase(recent_scenes.begin());
       }
       const ChildStatus* sc = sup.find("scene");
       if (!sc || sc->running) setSceneDown(false);  // a state of the running scene: its poses are current
     }
+    if (!lockstep) scoreAwaiting(false);
     msg::HandState h;
     while (hs_in->take(h)) {
       const double lat = h.stamp().source_time_ns() > 0 ? static_cast<double>(svc::nowNs() - h.stamp().source_time_ns()) * 1e-3 : 0.0;
@@ -735,13 +785,8 @@ int main(int argc, char** argv) {
           window_latency.push_back(lat);
         }
       } else {
-        const SceneSnapshot* own = nullptr;
-        if (!recent_scenes.empty()) {
-          const auto it = recent_scenes.find(h.scene_step());
-          own = it != recent_scenes.end() ? &it->second : &recent_scenes.rbegin()->second;
-          if (h.started() && !h.held() && !scene_down) ++(it != recent_scenes.end() ? rep.penetration_own_scene : rep.penetration_newest_scene);
-        }
-        measure(h, own, lat, stale_rx);
+        awaiting.push_back(Awaiting{h, lat, stale_rx, Clock::now()});
+        scoreAwaiting(false);
         const double now_s = replayS();
         hand_stale[h.hand()] = stale_rx;
         bool any_stale = false;
@@ -766,7 +811,7 @@ int main(int argc, char** argv) {
       double contacts = 0, c_us = 0, a_us = 0, s_us = 0, i_us = 0, ccd = 0, merge = 0;
       for (size_t c = 0; c < C; ++c) {
         const msg::HandState& hsc = it->second.states[c];
-        measure(hsc, c == 0 ? &snap : nullptr, 0.0, hsc.stale());
+        measure(hsc, c == 0 ? &snap : nullptr, 0.0, hsc.stale(), true);
         contacts += hsc.contacts();
         c_us += hsc.solver_times().contacts_us();
         a_us += hsc.solver_times().assembly_us();
@@ -908,6 +953,7 @@ int main(int argc, char** argv) {
       window_pen = 0;
     }
   }
+  scoreAwaiting(true);
   rep.run_s = secondsSince(t_start);
 
   // The services' last heartbeats (period 0.5 s) carry their final counters.
@@ -918,6 +964,7 @@ int main(int argc, char** argv) {
       drain();
     }
   }
+  scoreAwaiting(true);
   if (scene_down) rep.unscored_windows.push_back({unscored_from, -1.0});
   // Who is not running at the end (the ingest is done when it exited 0).
   watchdog.update(Clock::now());

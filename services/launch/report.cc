@@ -42,6 +42,13 @@ void printSummary(const RunReport& r) {
               r.penetration_max_m * 1e3, r.margin_m * 1e3, r.joint_gap_max_m, r.free_err_max_m * 1e3, r.clipped, r.pushouts);
   if (r.have_plausibility)
     for (const HandSummary& h : r.plausibility.hands) std::printf("  %s\n", describe(h).c_str());
+  if (r.penetration_max_m > r.margin_m) {
+    const RunReport::Worst& w = r.penetration_worst;
+    std::printf("  deepest state: hand %ld body %ld, frame %llu, scene step %llu (%s), %s%s, toc %.3f, at %s\n", w.hand, w.body,
+                static_cast<unsigned long long>(w.frame), static_cast<unsigned long long>(w.scene_step),
+                w.own_scene ? "its own scene state" : "scored against the newest scene state", w.tracked ? "tracked" : "untracked",
+                w.stale ? ", stale" : "", w.toc, secs(w.replay_s).c_str());
+  }
   if (r.penetration_newest_scene > 0)
     std::printf("  penetration of %ld states scored against the newest scene state (the one they were resolved against was not "
                 "kept), %ld against their own\n",
@@ -99,6 +106,12 @@ nlohmann::json reportJson(const RunReport& r) {
   j["stages_us"] = r.stages_us;
   j["penetration_max_m"] = r.penetration_max_m;
   j["penetration_unscored_states"] = r.penetration_unscored;
+  if (r.penetration_max_m > 0) {
+    const RunReport::Worst& w = r.penetration_worst;
+    j["penetration_worst"] = {{"hand", w.hand}, {"body", w.body}, {"frame", w.frame}, {"scene_step", w.scene_step},
+                              {"own_scene_state", w.own_scene}, {"tracked", w.tracked}, {"stale", w.stale}, {"toc", w.toc},
+                              {"replay_s", orNull(w.replay_s)}};
+  }
   j["penetration_own_scene_states"] = r.penetration_own_scene;
   j["penetration_newest_scene_states"] = r.penetration_newest_scene;
   nlohmann::json w = nlohmann::json::array();

@@ -70,6 +70,13 @@ struct RunReport {
   /// in the launcher's history) / against the newest scene state instead (their own was gone).
   long penetration_own_scene = 0, penetration_newest_scene = 0;
   std::vector<std::pair<double, double>> unscored_windows;  ///< seconds after the replay start
+  /// The state that scored penetration_max_m (when > 0): where to look.
+  struct Worst {
+    long hand = -1, body = -1;
+    std::uint64_t frame = 0, scene_step = 0;
+    bool own_scene = false, tracked = false, stale = false;
+    double toc = 1, replay_s = -1;
+  } penetration_worst;
 
   // Plausibility (core/pipeline/run_metrics.h: the same figures as godhand-bench's).
   RunSummary plausibility;

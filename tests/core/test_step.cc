@@ -432,6 +432,51 @@ TEST(HandLimits, JumpTo150DegreesHoldsUpperLimits) {
   EXPECT_LE(std::max(d.gap, d.lock), 1e-4);
 }
 
+// A step whose projection leaves the joints more open than they were is not a hand: the stepper
+// halves its motion and projects again (ClusterStepper::kShortenings times), then keeps the
+// previous state (kFlagStateKept). With one Newton iteration a slow curl (0.75° a step) moves on
+// (often halved), while a jump of 180° does not; every state the stepper returns has closed joints
+// (jointsClosed), and the slow curl is still followed. (Seen live: a projection that diverged
+// left a hand with a 0.3 m gap, which the solver published.)
+TEST(HandLimits, AStepThatOpensTheJointsIsShortenedOrKept) {
+  const HandModel& m = hand16();
+  StepParams prm;
+  prm.projection_iterations = 1;
+  ClusterStepper s(m, prm);
+  Pose X_WM;
+  X_WM.p = Vec3(0, 0, 0.2);
+  s.reset(m.restPoses(X_WM));
+  int kept = 0, shortened = 0, whole = 0;
+  double worst = 0;
+  for (int i = 0; i < 200; ++i) {
+    const bool jump = i == 100 || i == 101 || i == 150 || i == 151;  // to -30° and back to the ramp
+    const auto T = curledPose(m, X_WM, (jump && i % 2 == 0 ? -30.0 : 150.0 * i / 200.0) * kDeg);
+    const std::vector<Pose> before = s.poses();
+    const StepReport& r = s.step({T.data(), nullptr, nullptr, 0});
+    const JointErrors e = jointErrors(m, s.poses().data());
+    worst = std::max({worst, e.gap, e.lock});
+    if (r.flags & kFlagStateKept) {
+      ++kept;
+      EXPECT_EQ(r.shortened, ClusterStepper::kShortenings);
+      for (size_t b = 0; b < before.size(); ++b) EXPECT_EQ((s.poses()[b].p - before[b].p).norm(), 0.0);
+    } else if (r.shortened > 0) {
+      ++shortened;
+    } else {
+      ++whole;
+    }
+    EXPECT_TRUE(jointsClosed(r.joint_errors, prm)) << "step " << i;
+    EXPECT_TRUE(jointsClosed(e, prm)) << "step " << i;
+  }
+  figure("one_projection_iteration_steps_kept", kept);
+  figure("one_projection_iteration_steps_shortened", shortened);
+  figure("one_projection_iteration_max_joint_error", worst);
+  EXPECT_GT(kept + shortened, 0) << "one iteration closes every jump: the case does not exercise the guard";
+  EXPECT_GE(whole + shortened, 190) << "the slow curl was not followed";
+  EXPECT_LE(worst, 1e3 * prm.projection_tolerance);
+  EXPECT_EQ(s.counters().states_kept, static_cast<std::uint64_t>(kept));
+  EXPECT_EQ(s.counters().shortened_steps, static_cast<std::uint64_t>(kept + shortened));
+}
+
 // ---------------------------------------------------------------------------------------------
 // Contacts against the plane z = 0 (normal +z)
 

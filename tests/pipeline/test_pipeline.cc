@@ -11,6 +11,7 @@
 
 #include "geometry/bvh.h"
 #include "physics/physics_world.h"
+#include "pipeline/collision_world.h"
 #include "pipeline/pipeline.h"
 #include "scene/mesh_io.h"
 #include "scene/scene.h"
@@ -303,6 +304,44 @@ TEST(Pipeline, ResolverSweepsAgainAProposalOfAnotherSceneStateOfTheSameFrame) {
   EXPECT_EQ(resolver.result(0).scene_step, 2u);
   EXPECT_LE(resolver.penetration(0), 1e-9) << "the face moved to x = -0.04: the sphere stops at or before -0.05";
   EXPECT_LT(resolver.result(0).X[0].p.x(), -0.05 + 1e-6);
+}
+
+// A body that starts inside an object (a dynamic object moved into it, a live solver's older
+// scene) cannot be clipped (no time of contact), but it may only recede or slide: a motion that
+// takes it deeper does not move at all. Oracle: the analytic depth of a box resting 1 mm into
+// the top face of a larger box. (Seen live: a palm 25 µm inside moved 1.4 mm deeper.)
+TEST(Pipeline, ABodyStartedInsideMayRecedeOrSlideButNotGoDeeper) {
+  const Scene scene = sceneOf({boxObject("block", Vec3(0.03, 0.03, 0.03), at(0, 0, 0), 0.0)});
+  const CollisionWorld world(scene);
+  Shape palm;
+  palm.type = ShapeType::Box;
+  palm.half_extents = Vec3(0.01, 0.01, 0.005);
+  const Pose X0 = at(0, 0, 0.03 + 0.005 - 0.001);
+  ASSERT_NEAR(world.penetration(palm, X0), 0.001, 1e-9);
+  const geo::SweepParams sp;
+  struct Case {
+    const char* name;
+    Pose X1;
+    bool moves;
+  };
+  const Case cases[] = {{"deeper by 2 mm", at(0, 0, X0.p.z() - 0.002), false},
+                        {"deeper while sliding", at(0.01, 0, X0.p.z() - 0.0005), false},
+                        {"out by 5 mm", at(0, 0, X0.p.z() + 0.005), true},
+                        {"sliding 1 cm at the same depth", at(0.01, 0, X0.p.z()), true},
+                        {"out while sliding", at(0.01, 0.005, X0.p.z() + 0.0005), true}};
+  for (const Case& c : cases) {
+    const geo::SweepResult r = world.sweep(palm, X0, c.X1, sp);
+    EXPECT_TRUE(r.started_inside) << c.name;
+    if (c.moves) {
+      EXPECT_FALSE(r.hit) << c.name;
+      EXPECT_EQ(r.toc, 1.0) << c.name;
+      EXPECT_LE(world.penetration(palm, c.X1), 0.001 + 1e-9) << c.name;
+    } else {
+      EXPECT_TRUE(r.hit) << c.name;
+      EXPECT_EQ(r.toc, 0.0) << c.name;
+      EXPECT_GT(world.penetration(palm, c.X1), 0.001) << c.name << ": the oracle says it goes deeper";
+    }
+  }
 }
 
 }  // namespace
