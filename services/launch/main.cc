@@ -576,6 +576,8 @@ int main(int argc, char** argv) {
 
   Clock::time_point t_first_state{}, t_last_state{};
   bool run_over = false;  // the ingest is done: held hands re-published after the run are not counted
+  std::vector<long> live_contacts(C, 0);
+  std::vector<Pose> gap_poses;
   auto measure = [&](const msg::HandState& h, const SceneSnapshot* snap, double lat_us, bool stale_rx, bool own_scene) {
     if (h.held() && run_over) return;
     if (!h.held() && !stale_rx) {
@@ -597,6 +599,12 @@ int main(int argc, char** argv) {
     if (!lockstep)
       st_total.push_back(h.solver_times().contacts_us() + h.solver_times().assembly_us() + h.solver_times().solve_us() +
                          h.solver_times().integrate_us() + h.ccd_us() + h.merge_us() + last_scene_us);
+    if (!lockstep && h.hand() < C) {  // live: every hand's newest count, summed (lock-step: per frame, below)
+      live_contacts[h.hand()] = h.contacts();
+      long sum = 0;
+      for (long c : live_contacts) sum += c;
+      rep.contacts_max = std::max(rep.contacts_max, sum);
+    }
     if (h.toc() < 1.0) ++rep.clipped;
     if (h.lifted_start()) ++rep.lifted;
     if (h.started_inside()) ++rep.inside;
@@ -635,7 +643,14 @@ int main(int argc, char** argv) {
       rep.penetration_max_m = std::max(rep.penetration_max_m, pen);
       window_pen = std::max(window_pen, pen);
     }
-    rep.joint_gap_max_m = std::max(rep.joint_gap_max_m, h.joint_gap());
+    // The resolver's figure, and measured here from the poses (a second computation, not trust).
+    double gap = h.joint_gap();
+    if (h.hand() < C && h.poses().size() == models[h.hand()].bodies.size()) {
+      gap_poses.resize(h.poses().size());
+      for (std::size_t b = 0; b < h.poses().size(); ++b) gap_poses[b] = svc::fromWire(h.poses()[b]);
+      gap = std::max(gap, jointErrors(models[h.hand()], gap_poses.data()).gap);
+    }
+    rep.joint_gap_max_m = std::max(rep.joint_gap_max_m, gap);
     if (!scene_down && h.hand() < C && h.poses().size() == models[h.hand()].bodies.size()) {
       const std::size_t c = h.hand();
       HandSample s;

@@ -139,7 +139,10 @@ def case_live(recording):
     lat = j.get("latency_us", {})
     check(lat.get("samples", 0) > 0 and lat.get("median", 0) > 0,
           f"end-to-end latency measured: median {lat.get('median', 0):.0f} us, p99 {lat.get('p99', 0):.0f} us over {lat.get('samples')} states")
-    check(j.get("penetration_max_m", 1) <= j.get("margin_m", 0), f"nothing penetrates ({j.get('penetration_max_m')} m)")
+    check(j.get("penetration_max_m", 1) <= j.get("margin_m", 0),
+          f"nothing penetrates ({j.get('penetration_max_m')} m; deepest state {j.get('penetration_worst')})")
+    check(j.get("joint_gap_max_m", 1) <= 1e-6, f"every hand state a closed hand (joint gap max {j.get('joint_gap_max_m')} m)")
+    check(j.get("contacts_max", 0) > 0, f"contacts counted live ({j.get('contacts_max')})")
     check(j.get("check", {}).get("ok") is True and j.get("dead_at_end") == [], f"check passed, nothing dead ({j.get('check')})")
     delivery_checks(j)
     common_checks(j)
@@ -426,7 +429,8 @@ def case_kill(service, recording):
           f"fresh states again after the restart: {d.get('resume_after_restart_s', -1):.2f} s after it")
     delivery_checks(j)
     check(j.get("penetration_max_m", 1) <= j.get("margin_m", 0),
-          f"penetration-free against the last scene throughout ({j.get('penetration_max_m')} m)")
+          f"penetration-free against the last scene throughout ({j.get('penetration_max_m')} m; deepest state {j.get('penetration_worst')})")
+    check(j.get("joint_gap_max_m", 1) <= 1e-6, f"every hand state a closed hand (joint gap max {j.get('joint_gap_max_m')} m)")
     if service == "scene":
         log = os.path.join(TMP, "logs", "scene.log")
         text = open(log).read() if os.path.exists(log) else ""
