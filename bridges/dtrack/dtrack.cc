@@ -348,6 +348,15 @@ std::array<Vec3, 4> fingerJoints(const Finger& f, bool tip_adds_radius) {
   return {hand(j3), hand(j2), hand(j1), hand(tip)};
 }
 
+leap::TrackedBody mapBody(const Body& b, const MapOptions& o) {
+  leap::TrackedBody t;
+  t.id = b.id;
+  t.quality = std::clamp(b.quality, 0.0, 1.0);
+  t.X_WB.q = Quat(o.X_WT.q.toRotationMatrix() * axesMatrix(o.y_up) * b.R).normalized();
+  t.X_WB.p = roomToWorld(b.p_mm, o);
+  return t;
+}
+
 leap::TrackedHand mapHand(const Hand& h, const MapOptions& o) {
   leap::TrackedHand t;
   t.id = h.id;
@@ -430,6 +439,14 @@ bool Decoder::feed(std::string_view bytes, std::int64_t arrival_us, leap::Tracke
   } else {
     frame->timestamp_us = arrival_us;
   }
+  frame->bodies.clear();
+  for (const Body& b : d.bodies) {
+    if (b.quality < 0.0) {
+      ++bodies_untracked_;
+      continue;
+    }
+    frame->bodies.push_back(mapBody(b, map_));
+  }
   frame->hands.clear();
   for (const Hand& h : d.hands) {
     if (h.quality < 0.0) {
@@ -453,6 +470,7 @@ std::string Decoder::summary() const {
   if (!any) s += "none";
   if (restarts_) s += "; tracker restarts " + std::to_string(restarts_);
   if (hands_untracked_) s += "; hands with quality < 0 (not tracked) " + std::to_string(hands_untracked_);
+  if (bodies_untracked_) s += "; 6d bodies with quality < 0 (not tracked) " + std::to_string(bodies_untracked_);
   if (fingers_synth_) s += "; fingers synthesised (3-finger hands) " + std::to_string(fingers_synth_);
   return s;
 }

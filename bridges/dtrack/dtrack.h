@@ -133,6 +133,8 @@ struct MapOptions {
 
 /// Room (DTrack units, after the up-axis change) point -> world metres.
 Vec3 roomToWorld(const Vec3& p_room, const MapOptions& o);
+/// One DTrack 6d body -> TrackedBody (world): the body frame's pose, calibrated like the hands.
+leap::TrackedBody mapBody(const Body& b, const MapOptions& o);
 /// One DTrack hand -> TrackedHand (world). Fingers: joints by ART's formula.
 leap::TrackedHand mapHand(const Hand& h, const MapOptions& o);
 /// Joints of a finger in the hand frame (mm): mcp, pip, dip, tip.
@@ -152,6 +154,7 @@ class Decoder {
   std::uint64_t rejectedTotal() const;
   std::uint64_t restarts() const { return restarts_; }
   std::uint64_t handsNotTracked() const { return hands_untracked_; }
+  std::uint64_t bodiesNotTracked() const { return bodies_untracked_; }
   std::uint64_t handsDuplicate() const { return hands_duplicate_; }
   std::uint64_t fingersSynthesised() const { return fingers_synth_; }
   /// One line: "datagrams 300/307 accepted; rejected: parse error 3, stale/duplicate 4; ...".
@@ -165,6 +168,7 @@ class Decoder {
   ParseLimits limits_;
   MapOptions map_;
   std::uint64_t received_ = 0, accepted_ = 0, restarts_ = 0, hands_untracked_ = 0, hands_duplicate_ = 0, fingers_synth_ = 0;
+  std::uint64_t bodies_untracked_ = 0;
   std::array<std::uint64_t, static_cast<std::size_t>(Reject::kCount)> rejected_{};
   bool have_last_ = false;
   std::uint64_t last_frame_ = 0;

@@ -55,10 +55,18 @@ struct TrackedHand {
   std::array<std::array<Vec3, 4>, kFingerCount> joints_W{};
 };
 
+/// One 6-DOF tracked rigid body (a DTrack `6d` body: a tool, a prop), world frame, metres.
+struct TrackedBody {
+  int id = -1;
+  double quality = 0.0;
+  Pose X_WB;
+};
+
 struct TrackerFrame {
   std::int64_t timestamp_us = 0;
   std::int64_t frame_id = -1;  ///< Leap's frame id, −1 when the file has none
   std::vector<TrackedHand> hands;
+  std::vector<TrackedBody> bodies;  ///< 6-DOF bodies (sources that track them: DTrack)
 };
 
 enum class FrameReject : int { kNotObject, kMissingTimestamp, kDecreasingTimestamp, kMissingHands, kCount };

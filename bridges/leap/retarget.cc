@@ -58,7 +58,8 @@ Retargeter::Retargeter(const HandModel& model, const RetargetOptions& options) :
     int kind = 0, finger = -1, bone = -1;
     if (!parseSegment(b.tracker_segment, &kind, &finger, &bone))
       throw std::invalid_argument("model '" + model_.name + "': body '" + b.name + "' has unknown tracker_segment '" + b.tracker_segment +
-                                  "' (known: palm, {thumb,index,middle,ring,pinky}.{1,2,3,tip})");
+                                  "' (known: palm, {thumb,index,middle,ring,pinky}.{1,2,3,tip}" +
+                                  (b.tracker_segment == "tool" ? "; 'tool' is a 6-DOF tracked body: give its cluster tracker_body N in the lab, not a side" : "") + ")");
     Drive& d = drive_[i];
     d.kind = kind == 1 ? Kind::kPalm : kind == 2 ? Kind::kPhalanx : Kind::kTip;
     d.finger = finger;

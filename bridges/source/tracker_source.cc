@@ -90,8 +90,22 @@ class Plausibility {
       kept.push_back(h);
     }
     f->hands.swap(kept);
+    std::vector<leap::TrackedBody> bodies;
+    for (const leap::TrackedBody& b : f->bodies) {
+      if ((X_TW_ * b.X_WB.p).cwiseAbs().maxCoeff() > o_.max_abs_position_m) {
+        ++bodies_outside;
+        continue;
+      }
+      bodies.push_back(b);
+    }
+    f->bodies.swap(bodies);
   }
   void addTo(SourceStats* s) const {
+    if (bodies_outside) {
+      s->by_reason.emplace_back("6-DOF body outside the tracking volume", bodies_outside);
+      s->detail += "; 6-DOF bodies outside the tracking volume " + std::to_string(bodies_outside);
+    }
+    s->rejected += bodies_outside;
     if (outside) {
       s->by_reason.emplace_back("hand outside the tracking volume", outside);
       s->detail += "; hands outside the tracking volume " + std::to_string(outside);
@@ -102,7 +116,7 @@ class Plausibility {
     }
     s->rejected += outside + jumps;
   }
-  std::uint64_t outside = 0, jumps = 0;
+  std::uint64_t outside = 0, jumps = 0, bodies_outside = 0;
 
  private:
   struct Last {

@@ -22,6 +22,7 @@ namespace godhand::bridges {
 
 using TrackerFrame = leap::TrackerFrame;
 using TrackedHand = leap::TrackedHand;
+using TrackedBody = leap::TrackedBody;
 
 struct SourceError : std::runtime_error {
   using std::runtime_error::runtime_error;

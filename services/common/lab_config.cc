@@ -251,7 +251,16 @@ LabConfig parseLab(const std::string& text, const std::string& source, const std
     if (!fresh)
       where.fail("name", "duplicate cluster name " + inQuotes(c.name) + " (also clusters[" + std::to_string(it->second) + "])");
     c.side = pc.side();
-    if (c.side != "right" && c.side != "left") where.fail("side", "must be \"right\" or \"left\", got " + inQuotes(c.side));
+    if (pc.has_tracker_body()) {
+      if (pc.tracker_body() < 0 || pc.tracker_body() > 1000)
+        where.fail("tracker_body", "a tracked body id is 0 to 1000, got " + std::to_string(pc.tracker_body()));
+      if (!c.side.empty())
+        where.fail("side", "a tool cluster (tracker_body " + std::to_string(pc.tracker_body()) +
+                               ") is driven by that body, not by a hand: remove side " + inQuotes(c.side));
+      c.tracker_body = pc.tracker_body();
+    } else if (c.side != "right" && c.side != "left") {
+      where.fail("side", "must be \"right\" or \"left\" (or give tracker_body N for a tool), got " + inQuotes(c.side));
+    }
     if (pc.model().empty()) where.fail("model", "cluster " + inQuotes(c.name) + " needs a hand model file");
     c.model = existingFile(pc.model(), base, where, "model", "hand model");
     lab.clusters.push_back(std::move(c));

@@ -29,7 +29,8 @@ struct LabCluster {
   int index = 0;
   std::string name;   ///< [a-z0-9_-]{1,31}, unique
   std::string model;  ///< absolute path of the hand model file (exists)
-  std::string side;   ///< which tracked hand drives it: "right" or "left"
+  std::string side;   ///< which tracked hand drives it: "right" or "left" ("" for a tool)
+  int tracker_body = -1;  ///< a tool cluster: the 6-DOF tracked body id that drives it; −1: a hand
 };
 
 /// A service to run. Exactly one INGEST, SCENE and RESOLVER, and one SOLVER per cluster.

@@ -137,8 +137,12 @@ std::string renderLabText(const LabConfig& lab, const std::string& profiles_dir)
   if (!lab.discovery_server.empty())
     s << "discovery_server: " << quoted(lab.discovery_server) << "\ndiscovery_port: " << lab.discovery_port << "\n";
   if (!lab.security.empty()) s << "security: " << quoted(lab.security) << "\n";
-  for (const LabCluster& c : lab.clusters)
-    s << "clusters { name: " << quoted(c.name) << " model: " << quoted(c.model) << " side: " << quoted(c.side) << " }\n";
+  for (const LabCluster& c : lab.clusters) {
+    s << "clusters { name: " << quoted(c.name) << " model: " << quoted(c.model);
+    if (c.tracker_body >= 0) s << " tracker_body: " << c.tracker_body;
+    else s << " side: " << quoted(c.side);
+    s << " }\n";
+  }
   for (const LabService& v : lab.services) {
     s << "services { kind: " << kindName(v.kind);
     if (!v.cluster.empty()) s << " cluster: " << quoted(v.cluster);

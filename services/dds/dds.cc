@@ -718,6 +718,10 @@ struct Reader<T>::Impl : Endpoint {
 
 template <class T>
 Reader<T>::Reader(Participant& participant, const std::string& topic, const std::string& profile)
+    : Reader(participant, topic, profile, 0) {}
+
+template <class T>
+Reader<T>::Reader(Participant& participant, const std::string& topic, const std::string& profile, int keep_last)
     : impl_(new Impl) {
   impl_->core = participant.core_;
   impl_->topic = topic;
@@ -727,8 +731,20 @@ Reader<T>::Reader(Participant& participant, const std::string& topic, const std:
   fdds::Topic* t = c.template topic<typename WireType<T>::PubSub>(topic);
   c.requireEndpointProfile(false, profile);
   const std::uint64_t mark = errorMark();
-  impl_->reader =
-      c.subscriber->create_datareader_with_profile(t, profile, impl_->listener.get(), fdds::StatusMask::data_available());
+  if (keep_last > 0) {
+    fdds::DataReaderQos qos;
+    if (c.subscriber->get_datareader_qos_from_profile(profile, qos) != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK)
+      throw DdsError(std::string(kPrefix) + "no data_reader profile " + inQuotes(profile) + " in " + inQuotes(c.profiles_file));
+    if (qos.history().kind == fdds::KEEP_LAST_HISTORY_QOS) qos.history().depth = std::max(qos.history().depth, keep_last);
+    auto& rl = qos.resource_limits();
+    if (rl.max_samples_per_instance > 0) rl.max_samples_per_instance = std::max(rl.max_samples_per_instance, keep_last);
+    if (rl.max_samples > 0 && rl.max_instances > 0 && rl.max_samples_per_instance > 0)
+      rl.max_samples = std::max(rl.max_samples, rl.max_instances * rl.max_samples_per_instance);
+    impl_->reader = c.subscriber->create_datareader(t, qos, impl_->listener.get(), fdds::StatusMask::data_available());
+  } else {
+    impl_->reader =
+        c.subscriber->create_datareader_with_profile(t, profile, impl_->listener.get(), fdds::StatusMask::data_available());
+  }
   if (impl_->reader == nullptr)
     throw DdsError(std::string(kPrefix) + "Fast DDS could not create a reader on " + inQuotes(topic) +
                    " from data_reader profile " + inQuotes(profile) + " of " + inQuotes(c.profiles_file) + errorsSince(mark));

@@ -155,6 +155,9 @@ class Reader {
   // A DataReader on `topic` from the data_reader profile `profile`; data arriving wakes the
   // participant's waitForData. DdsError as Writer.
   Reader(Participant& participant, const std::string& topic, const std::string& profile);
+  // The same with the profile's KEEP_LAST history deepened to at least `keep_last` per instance
+  // (a monitor that must see every sample of a best-effort stream it reads in bursts).
+  Reader(Participant& participant, const std::string& topic, const std::string& profile, int keep_last);
   ~Reader();
   Reader(const Reader&) = delete;
   Reader& operator=(const Reader&) = delete;

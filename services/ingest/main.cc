@@ -10,6 +10,7 @@
 #include <thread>
 
 #include "leap/retarget.h"
+#include "leap/tool_target.h"
 #include "model/hand_model.h"
 #include "runtime/convert.h"
 #include "runtime/service.h"
@@ -24,7 +25,8 @@ namespace {
 constexpr const char* kSynopsis =
     "Reads a tracker source and publishes godhand/hand_target: per frame one HandTarget for each hand\n"
     "cluster of the lab (the tracked hand of the cluster's side with the highest confidence,\n"
-    "retargeted onto the cluster's hand model; tracked = false when the side is not seen).\n"
+    "retargeted onto the cluster's hand model; tracked = false when the side is not seen); a tool\n"
+    "cluster (tracker_body N, a model with tracker_segment \"tool\") takes the pose of 6-DOF body N.\n"
     "Live mode replays at the recorded rate; --lockstep waits for each frame's HandStates.\n"
     "A live source (dtrack://HOST:PORT: ART DTrack ASCII over UDP) publishes every accepted frame as\n"
     "it arrives, reports a silence of --silence S seconds (and publishes the hands untracked, so\n"
@@ -58,10 +60,13 @@ int main(int argc, char** argv) {
   cli.option("--frames", &frames, "N", "stop after N frames (0: all)");
   cli.option("--speed", &speed, "X", "live replay speed factor");
   cli.option("--start-timeout", &start_timeout, "S", "wait at most this long for every service of the lab to report");
+  int readers = 0;
+  cli.option("--readers", &readers, "N", "start once N HandTarget readers are matched (0: one per cluster; godhand-launch adds its monitor)");
   cli.parse(argc, argv);
   if (frames < 0) cli.fail("--frames must be >= 0");
   if (!(speed >= 0.01 && speed <= 1000.0)) cli.fail("--speed must be in [0.01, 1000]");
   if (!(start_timeout > 0.0 && start_timeout <= 3600.0)) cli.fail("--start-timeout must be in (0, 3600] s");
+  if (readers < 0 || readers > 1000) cli.fail("--readers must be in [0, 1000]");
   if (!(duration >= 0.0 && duration <= 7 * 86400.0)) cli.fail("--duration must be in [0, 604800] s");
   if (!(silence >= 0.05 && silence <= 3600.0)) cli.fail("--silence must be in [0.05, 3600] s");
 
@@ -106,6 +111,15 @@ int main(int argc, char** argv) {
     }
     for (size_t c = 0; c < lab.clusters.size(); ++c) {
       models[c] = HandModel::loadFile(lab.clusters[c].model);
+      const bool tool_cluster = lab.clusters[c].tracker_body >= 0;
+      if (tool_cluster != leap::isToolModel(models[c]))
+        cli.fail("cluster '" + lab.clusters[c].name + "': model " + lab.clusters[c].model +
+                 (tool_cluster ? " is not a tool model (every body's tracker_segment \"tool\"), but the cluster gives tracker_body"
+                               : " is a tool model (tracker_segment \"tool\"): give the cluster tracker_body N, not a side"));
+      if (tool_cluster) {
+        retarget.push_back(nullptr);  // driven by its tracked body (leap::toolTargets)
+        continue;
+      }
       retarget.push_back(std::make_unique<leap::Retargeter>(models[c]));
       const auto right = retarget.back()->modelIsRight();
       if (right && *right != (lab.clusters[c].side == "right"))
@@ -155,12 +169,13 @@ int main(int argc, char** argv) {
         if (st.state() == "running") seen[st.service().to_string()] = true;
       size_t ready = 0;
       for (const std::string& e : expected) ready += seen.count(e);
-      if (ready == expected.size() && writer.matched() >= static_cast<int>(lab.clusters.size())) break;
+      const int want = std::max(readers, static_cast<int>(lab.clusters.size()));
+      if (ready == expected.size() && writer.matched() >= want) break;
       if (SteadyClock::now() >= until) {
         std::string missing;
         for (const std::string& e : expected)
           if (!seen.count(e)) missing += (missing.empty() ? "" : ", ") + e;
-        if (missing.empty()) missing = "solvers not matched";
+        if (missing.empty()) missing = std::to_string(writer.matched()) + " of " + std::to_string(std::max(readers, static_cast<int>(lab.clusters.size()))) + " HandTarget readers matched";
         // Lock-step needs every stage; live degrades (the missing ones are held when they come).
         if (service.lockstep())
           return service.finish(3, "services not running after " + std::to_string(start_timeout) + " s: " + missing);
@@ -285,18 +300,20 @@ int main(int argc, char** argv) {
     // Latency is counted from the datagram's arrival for a live source.
     const std::int64_t t_source = live_source && source->lastArrivalNs() > 0 ? source->lastArrivalNs() : svc::nowNs();
     for (size_t c = 0; c < C; ++c) {
-      const bridges::TrackedHand* th = bridges::handOfSide(f, lab.clusters[c].side == "right");
+      const bridges::TrackedHand* th = retarget[c] ? bridges::handOfSide(f, lab.clusters[c].side == "right") : nullptr;
+      double quality = th ? th->confidence : 0.0;
+      const bool tool_seen = !retarget[c] && leap::toolTargets(models[c], f, lab.clusters[c].tracker_body, &targets, &driven, &quality);
       out.hand(static_cast<std::uint32_t>(c));
       out.cluster(lab.clusters[c].name);
       out.stamp().run(run);
       out.stamp().frame(k);
       out.stamp().source_time_ns(t_source);
-      out.tracked(th != nullptr);
-      out.confidence(th ? static_cast<float>(th->confidence) : 0.0f);
+      out.tracked(th != nullptr || tool_seen);
+      out.confidence(static_cast<float>(quality));
       out.targets().clear();
       out.driven().clear();
-      if (th) {
-        retarget[c]->targets(*th, &targets, &driven);
+      if (th || tool_seen) {
+        if (th) retarget[c]->targets(*th, &targets, &driven);
         out.targets().resize(targets.size());
         for (size_t b = 0; b < targets.size(); ++b) svc::toWire(targets[b], &out.targets()[b]);
         for (unsigned char d : driven) out.driven().push_back(d != 0);

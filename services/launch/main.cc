@@ -388,6 +388,9 @@ int main(int argc, char** argv) {
       case pb::Service::INGEST:
         c.argv.insert(c.argv.end(), {"--source", lab.recording, "--frames", std::to_string(frames), "--speed", fmt17(speed),
                                      "--start-timeout", fmt17(start_timeout)});
+        // Its first frames go to this launcher's monitor as well (the plausibility figures score
+        // every state against its target): one reader per cluster, plus this one.
+        c.argv.insert(c.argv.end(), {"--readers", std::to_string(lab.clusters.size() + 1)});
         if (duration > 0) c.argv.insert(c.argv.end(), {"--duration", fmt17(duration)});
         break;
       case pb::Service::SOLVER: c.argv.insert(c.argv.end(), {"--cluster", s.cluster, "--solver", solver}); break;
@@ -432,7 +435,9 @@ int main(int argc, char** argv) {
     dp = std::make_unique<dds::Participant>(dds::Options{static_cast<int>(lab.domain_id), lab.profiles, dds::profile::kParticipant, "launch"});
     hs_in = std::make_unique<dds::Reader<msg::HandState>>(*dp, dds::topic::kHandState, state_profile);
     ss_in = std::make_unique<dds::Reader<msg::SceneState>>(*dp, dds::topic::kSceneState, state_profile);
-    ht_in = std::make_unique<dds::Reader<msg::HandTarget>>(*dp, dds::topic::kHandTarget, stream_profile);
+    // Every target is scored against its HandState: a deeper history than the stream's (live:
+    // keep-last 1, a monitor waking every 20 ms lost one in two at 114 Hz).
+    ht_in = std::make_unique<dds::Reader<msg::HandTarget>>(*dp, dds::topic::kHandTarget, stream_profile, 64);
     st_in = std::make_unique<dds::Reader<msg::ServiceStatus>>(*dp, dds::topic::kServiceStatus, dds::profile::kStatus);
   } catch (const std::exception& e) {
     hs_in.reset();
@@ -575,6 +580,7 @@ int main(int argc, char** argv) {
   bool scene_restarted = false;     // the scene was restarted: its first state's jump is measured
 
   Clock::time_point t_first_state{}, t_last_state{};
+  bool ingest_done = false;  // the ingest exited 0: every HandTarget it wrote is out
   bool run_over = false;  // the ingest is done: held hands re-published after the run are not counted
   std::vector<long> live_contacts(C, 0);
   std::vector<Pose> gap_poses;
@@ -815,10 +821,19 @@ int main(int argc, char** argv) {
         }
       }
     }
-    // Lock-step: frames complete in order (every cluster's HandState(k) and SceneState(k)).
+    // Lock-step: frames complete in order (every cluster's HandState(k) and SceneState(k), and
+    // its HandTarget(k), which the plausibility figures score against: the topics are not
+    // ordered with one another, and a state measured before its target came was counted as
+    // untracked; reliable, so it comes, unless the ingest is gone).
     while (lockstep) {
       auto it = pending.find(next_frame);
       if (it == pending.end() || !scenes.count(next_frame)) break;
+      if (!ingest_done) {
+        const auto tg = targets.find(next_frame);
+        bool have_targets = tg != targets.end() && tg->second.size() == C;
+        for (size_t c = 0; have_targets && c < C; ++c) have_targets = tg->second[c].cluster().size() > 0;
+        if (!have_targets) break;
+      }
       bool all = true;
       for (unsigned char c : it->second.have) all = all && c;
       if (!all) break;
@@ -855,7 +870,6 @@ int main(int argc, char** argv) {
 
   // Run until the ingest is done (or a failure, or a stop signal).
   Clock::time_point last_print = Clock::now(), last_shm_scan = Clock::now();
-  bool ingest_done = false;
   std::map<std::string, Clock::time_point> restarts;  // service -> when to restart it
   auto restartLater = [&](const std::string& name, const std::string& why) {
     std::printf("launch: %s %s; restarting in %.1f s\n", name.c_str(), why.c_str(), restart_delay);

@@ -215,6 +215,45 @@ TEST(DtrackDecoder, QualityMinusOneIsNotTracked) {
   EXPECT_EQ(dec.handsNotTracked(), 1u);
 }
 
+// A 6d body is a rigid body's pose (a tool): in the sample streams body 1 is the hand target, so
+// its mapped pose must be the hand's palm pose (no palm offset) up to the fixed change of axes
+// between DTrack's hand frame and godhand's palm frame (R_palm = R_body [Y X -Z], right hand),
+// with and without a calibration (tracker pose, Y-up room). Bodies with quality -1 are dropped
+// and counted.
+TEST(DtrackMapping, SixDofBodyIsThePoseOfItsTarget) {
+  MapOptions plain, calibrated;
+  calibrated.y_up = true;
+  calibrated.X_WT = Pose{Vec3(0.3, -1.2, 0.8), Quat(Eigen::AngleAxisd(0.7, Vec3(0.2, 0.3, 0.9).normalized()))};
+  for (const MapOptions& o : {plain, calibrated}) {
+    Decoder dec(ParseLimits{}, o);
+    br::TrackerFrame f;
+    int frames = 0;
+    for (const std::string& g : sample("pinch.dtrack")) {
+      if (!dec.feed(g, 0, &f)) continue;
+      ASSERT_EQ(f.bodies.size(), 1u);
+      ASSERT_EQ(f.hands.size(), 1u);
+      const br::TrackedBody& b = f.bodies[0];
+      const br::TrackedHand& h = f.hands[0];
+      EXPECT_EQ(b.id, 1);
+      EXPECT_NEAR((b.X_WB.p - h.X_W_palm.p).norm(), 0.0, 1e-12);
+      const Mat3 Rb = b.X_WB.q.toRotationMatrix();
+      Mat3 expected;
+      expected << Rb.col(1), Rb.col(0), -Rb.col(2);
+      EXPECT_NEAR((expected - h.X_W_palm.q.toRotationMatrix()).norm(), 0.0, 1e-9);
+      ++frames;
+    }
+    EXPECT_EQ(frames, 307);
+  }
+  std::string g = sample("pinch.dtrack")[0];
+  g.replace(g.find("[1 1.000]"), 9, "[1 -1.000]");
+  Decoder dec;
+  br::TrackerFrame f;
+  ASSERT_TRUE(dec.feed(g, 0, &f)) << dec.lastDetail();
+  EXPECT_TRUE(f.bodies.empty());
+  EXPECT_EQ(dec.bodiesNotTracked(), 1u);
+  EXPECT_NE(dec.summary().find("6d bodies with quality < 0 (not tracked) 1"), std::string::npos) << dec.summary();
+}
+
 // The sample streams were made from the bundled Leap recordings: same motion, same world frame.
 // The Leap reader is the oracle. The residual comes from DTrack's printed precision (4 decimals
 // for fingers: 1e-4 mm, 1e-4° ≈ 1.7e-6 rad over ~50 mm levers), so a few micrometres.

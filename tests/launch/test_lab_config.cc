@@ -132,6 +132,8 @@ TEST(LabConfig, MinimalLabDefaults) {
   EXPECT_DOUBLE_EQ(lab.stale_after_s, 0.25);
   ASSERT_EQ(lab.clusters.size(), 1u);
   EXPECT_EQ(lab.clusters[0].name, "solo");
+  EXPECT_EQ(lab.clusters[0].tracker_body, 1);  // a tool cluster, driven by tracked body 1
+  EXPECT_EQ(lab.clusters[0].side, "");
   ASSERT_EQ(lab.services.size(), 4u);
   EXPECT_EQ(lab.services[3].name, "solver/solo");
 }
@@ -171,6 +173,8 @@ const BadFile kBadFiles[] = {
     {"bad_cluster_name.pbtxt", "clusters[0].name", "\"Right Hand\""},
     {"duplicate_cluster.pbtxt", "clusters[1].name", "duplicate cluster name \"hand\""},
     {"bad_side.pbtxt", "clusters[0].side", "\"both\""},
+    {"bad_tool_side.pbtxt", "clusters[0].side", "a tool cluster (tracker_body 1) is driven by that body"},
+    {"bad_tracker_body.pbtxt", "clusters[0].tracker_body", "0 to 1000, got -2"},
     {"missing_model.pbtxt", "clusters[0].model", "no_such_hand.pbtxt\" (/"},
     {"missing_scene.pbtxt", "scene", "does not exist"},
     {"missing_profiles.pbtxt", "profiles", "no_such_profiles.xml"},

@@ -11,6 +11,10 @@ cases:
   rejects                          godhand-ingest's bad configurations: one line, exit 2
   formats DATA_DIR                 lock-step runs through the lab with --check of a .dtrack file, the
                                    Aria CSV sample and a synthetic script (detected by content)
+  tool LAB DTRACK_FILE SENDER      a tool cluster driven by a DTrack 6d body (tracker_body) beside a
+                                   right hand: in lock-step from the file and live over UDP with
+                                   every fault; the tool is tracked, follows its body exactly when
+                                   free (a rigid model: no model error), penetration-free
 
 Every wait has a deadline; nothing is left behind (no process of the domain, no shared-memory
 segment of the run). Only loopback traffic: the sender refuses any other address.
@@ -213,6 +217,73 @@ def case_formats(data):
         check(j.get("shm_segments_left", -1) == 0, f"{name}: no shared-memory segment left behind")
 
 
+def tool_checks(j, what, lossy):
+    d = j.get("delivery", {}).get("tool", {})
+    hand = j.get("plausibility", {}).get("per_hand", {}).get("tool", {})
+    print(f"{what}: tool delivery {d}; tool figures: tracked {hand.get('tracked')}, model error {hand.get('model_error_m')}, "
+          f"free tracking error {hand.get('free_tracking_error_m')}", flush=True)
+    check(sorted(j.get("delivery", {})) == ["right", "tool"], f"{what}: both clusters reported")
+    if lossy:
+        check(d.get("expected", 0) > 50 and d.get("lost", 1) <= d["expected"] * LOSS, f"{what}: tool frames lost within {LOSS:.0%}")
+    else:
+        check(d.get("expected") == 307 and d.get("fresh") == 307, f"{what}: every one of 307 frames delivered fresh for the tool")
+    # Tracked in every frame that carried its body (every accepted datagram does), started once tracked.
+    check(hand.get("tracked", 0) >= 0.95 * d.get("fresh", 1e9) and hand.get("started", 0) >= hand.get("tracked", 1),
+          f"{what}: the tool tracked in the frames delivered ({hand.get('tracked')} of {d.get('fresh')}) and started")
+    check(hand.get("model_error_m", {}).get("max", 1) <= 1e-9, f"{what}: the free twin reproduces the tracked body exactly (a rigid model)")
+    check(hand.get("free_tracking_error_m", {}).get("count", 0) > 0 and hand.get("free_tracking_error_m", {}).get("max", 1) <= 1e-6,
+          f"{what}: the tool on its tracked body wherever no contact loads it")
+    check(j.get("penetration_max_m", 1) <= j.get("margin_m", 0), f"{what}: penetration-free ({j.get('penetration_max_m')} m)")
+    check(j.get("shm_segments_left", -1) == 0, f"{what}: no shared-memory segment left behind")
+
+
+def case_tool(lab, dtrack_file, sender):
+    logs = os.path.join(TMP, "logs")
+    report = os.path.join(TMP, "tool.json")
+    cmd = [os.path.join(BIN, "godhand-launch"), "--lab", lab, "--domain", DOMAIN, "--lockstep", "--check", "--json", report,
+           "--log-dir", logs, "--quiet"]
+    print("$ " + " ".join(cmd), flush=True)
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    print(r.stdout + r.stderr, flush=True)
+    check(r.returncode == 0, "lock-step run of the tool lab with --check exited 0")
+    tool_checks(json.load(open(report)) if os.path.exists(report) else {}, "lock-step", False)
+
+    # Live over UDP with every fault of the sender.
+    port = free_udp_port()
+    report = os.path.join(TMP, "tool-live.json")
+    send_log = os.path.join(TMP, "send.jsonl")
+    shutil.rmtree(logs, ignore_errors=True)
+    cmd = [os.path.join(BIN, "godhand-launch"), "--lab", lab, "--domain", DOMAIN, "--source", f"dtrack://127.0.0.1:{port}",
+           "--duration", "7", "--json", report, "--log-dir", logs, "--quiet", "--check", "--loss-budget", str(LOSS)]
+    print("$ " + " ".join(cmd), flush=True)
+    launch = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        ingest_log = os.path.join(logs, "ingest.log")
+        deadline = time.time() + 60
+        while time.time() < deadline and launch.poll() is None:
+            if os.path.exists(ingest_log) and "receiving" in open(ingest_log, errors="replace").read():
+                break
+            time.sleep(0.1)
+        check(launch.poll() is None, "the launcher and its services came up")
+        s = subprocess.run([sys.executable, sender, dtrack_file, "--port", str(port), "--seed", "5", "--drop", "0.05",
+                            "--garbage", "0.05", "--truncate", "0.05", "--nan", "0.05", "--huge", "0.05", "--reorder", "0.05",
+                            "--log", send_log], capture_output=True, text=True, timeout=60)
+        check(s.returncode == 0, "dtrack-send ran")
+        out, _ = launch.communicate(timeout=120)
+    finally:
+        if launch.poll() is None:
+            launch.kill()
+            launch.wait()
+    print(out, flush=True)
+    check(launch.returncode == 0, f"godhand-launch (live, faults) --check exited 0 (was {launch.returncode})")
+    tool_checks(json.load(open(report)) if os.path.exists(report) else {}, "live", True)
+    st = ingest_source_line(open(os.path.join(logs, "ingest.log"), errors="replace").read()) if os.path.exists(os.path.join(logs, "ingest.log")) else None
+    actions = [json.loads(l)["action"] for l in open(send_log)] if os.path.exists(send_log) else []
+    check(st is not None and st["accepted"] + st["rejected"] == st["received"] and st["rejected"] > 0,
+          f"the faults were counted by the ingest ({st})")
+    print("sender actions:", {a: actions.count(a) for a in set(actions)}, flush=True)
+
+
 before = shm()
 try:
     if CASE == "live-dtrack":
@@ -223,6 +294,8 @@ try:
         case_rejects()
     elif CASE == "formats":
         case_formats(*ARGS)
+    elif CASE == "tool":
+        case_tool(*ARGS)
     else:
         print("unknown case " + CASE)
         sys.exit(2)
