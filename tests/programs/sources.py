@@ -74,17 +74,16 @@ def ingest_source_line(log):
     return dict(received=int(m.group(2)), accepted=int(m.group(3)), rejected=int(m.group(4)), reasons=reasons)
 
 
-def case_live_dtrack(dtrack_file, sender):
+def live_with_faults(launch_args, dtrack_file, sender, seed, duration, report, logs, send_log):
+    """godhand-launch on dtrack://127.0.0.1:PORT (launch_args added) fed by SENDER with every fault
+    once the ingest is past its start barrier (it prints "receiving"); returns (exit code, output)."""
     port = free_udp_port()
-    logs = os.path.join(TMP, "logs")
-    report = os.path.join(TMP, "live.json")
-    send_log = os.path.join(TMP, "send.jsonl")
-    cmd = [os.path.join(BIN, "godhand-launch"), "--domain", DOMAIN, "--source", f"dtrack://127.0.0.1:{port}",
-           "--duration", "9", "--json", report, "--log-dir", logs, "--quiet", "--check", "--loss-budget", str(LOSS)]
+    cmd = [os.path.join(BIN, "godhand-launch")] + launch_args + ["--domain", DOMAIN, "--source", f"dtrack://127.0.0.1:{port}",
+           "--duration", str(duration), "--json", report, "--log-dir", logs, "--quiet", "--check", "--loss-budget", str(LOSS)]
     print("$ " + " ".join(cmd), flush=True)
     launch = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    out = ""
     try:
-        # Start sending once the ingest is past its start barrier (it prints "receiving").
         ingest_log = os.path.join(logs, "ingest.log")
         deadline = time.time() + 60
         while time.time() < deadline and launch.poll() is None:
@@ -92,7 +91,7 @@ def case_live_dtrack(dtrack_file, sender):
                 break
             time.sleep(0.1)
         check(launch.poll() is None, "the launcher and its services came up")
-        s = subprocess.run([sys.executable, sender, dtrack_file, "--port", str(port), "--seed", "11", "--drop", "0.05",
+        s = subprocess.run([sys.executable, sender, dtrack_file, "--port", str(port), "--seed", str(seed), "--drop", "0.05",
                             "--garbage", "0.05", "--truncate", "0.05", "--nan", "0.05", "--huge", "0.05", "--reorder", "0.05",
                             "--log", send_log], capture_output=True, text=True, timeout=60)
         print(s.stdout + s.stderr, flush=True)
@@ -103,7 +102,15 @@ def case_live_dtrack(dtrack_file, sender):
             launch.kill()
             launch.wait()
     print(out, flush=True)
-    check(launch.returncode == 0, f"godhand-launch --check exited 0 (was {launch.returncode})")
+    return launch.returncode, out
+
+
+def case_live_dtrack(dtrack_file, sender):
+    logs = os.path.join(TMP, "logs")
+    report = os.path.join(TMP, "live.json")
+    send_log = os.path.join(TMP, "send.jsonl")
+    code, _ = live_with_faults([], dtrack_file, sender, 11, 9, report, logs, send_log)
+    check(code == 0, f"godhand-launch --check exited 0 (was {code})")
     j = json.load(open(report)) if os.path.exists(report) else {}
     check(j.get("penetration_max_m", 1) <= j.get("margin_m", 0), f"penetration-free ({j.get('penetration_max_m')} m)")
     check(j.get("shm_segments_left", -1) == 0, "no shared-memory segment left behind")
@@ -249,33 +256,11 @@ def case_tool(lab, dtrack_file, sender):
     tool_checks(json.load(open(report)) if os.path.exists(report) else {}, "lock-step", False)
 
     # Live over UDP with every fault of the sender.
-    port = free_udp_port()
     report = os.path.join(TMP, "tool-live.json")
     send_log = os.path.join(TMP, "send.jsonl")
     shutil.rmtree(logs, ignore_errors=True)
-    cmd = [os.path.join(BIN, "godhand-launch"), "--lab", lab, "--domain", DOMAIN, "--source", f"dtrack://127.0.0.1:{port}",
-           "--duration", "7", "--json", report, "--log-dir", logs, "--quiet", "--check", "--loss-budget", str(LOSS)]
-    print("$ " + " ".join(cmd), flush=True)
-    launch = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    try:
-        ingest_log = os.path.join(logs, "ingest.log")
-        deadline = time.time() + 60
-        while time.time() < deadline and launch.poll() is None:
-            if os.path.exists(ingest_log) and "receiving" in open(ingest_log, errors="replace").read():
-                break
-            time.sleep(0.1)
-        check(launch.poll() is None, "the launcher and its services came up")
-        s = subprocess.run([sys.executable, sender, dtrack_file, "--port", str(port), "--seed", "5", "--drop", "0.05",
-                            "--garbage", "0.05", "--truncate", "0.05", "--nan", "0.05", "--huge", "0.05", "--reorder", "0.05",
-                            "--log", send_log], capture_output=True, text=True, timeout=60)
-        check(s.returncode == 0, "dtrack-send ran")
-        out, _ = launch.communicate(timeout=120)
-    finally:
-        if launch.poll() is None:
-            launch.kill()
-            launch.wait()
-    print(out, flush=True)
-    check(launch.returncode == 0, f"godhand-launch (live, faults) --check exited 0 (was {launch.returncode})")
+    code, _ = live_with_faults(["--lab", lab], dtrack_file, sender, 5, 7, report, logs, send_log)
+    check(code == 0, f"godhand-launch (live, faults) --check exited 0 (was {code})")
     tool_checks(json.load(open(report)) if os.path.exists(report) else {}, "live", True)
     st = ingest_source_line(open(os.path.join(logs, "ingest.log"), errors="replace").read()) if os.path.exists(os.path.join(logs, "ingest.log")) else None
     actions = [json.loads(l)["action"] for l in open(send_log)] if os.path.exists(send_log) else []
