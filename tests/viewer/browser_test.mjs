@@ -511,7 +511,11 @@ async function caseAbuse() {
   await openBrowser();
   const page = await openPage(v.url);
   await page.waitForFunction(() => window.godhand && window.godhand.connected, null, { timeout: 20000 });
-  const l = launch(['--recording', REC2, '--speed', '0.35']);
+  // Speed 0.2: a 17 s replay, so that the 3 s window below still falls inside it after the abuse's
+  // set-up (in CI at 0.35, a 10 s replay, the window once began after the replay had ended: 0 states).
+  const l = launch(['--recording', REC2, '--speed', '0.2']);
+  let replayOver = false;
+  l.done.then(() => { replayOver = true; });
   await page.waitForFunction(() => window.godhand.received.hand_state > 20, null, { timeout: 60000 });
   // 1. A client that subscribes to everything (63 times over) and never reads.
   const stuck = await rawClient(v.port);
@@ -557,6 +561,7 @@ async function caseAbuse() {
   await sleep(3000);
   const after = await count();
   const dPage = after[0] - before[0], dViewer = after[1] - before[1];
+  check(!replayOver, 'the 3 s window fell inside the replay (else it measures nothing)');
   check(dViewer > 5 && dPage >= 0.6 * dViewer,
     `the real page kept receiving during the abuse: ${dPage} HandStates in 3 s, the viewer took ${dViewer} from DDS`);
   const s = await stats(v.url);
