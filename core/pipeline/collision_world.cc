@@ -210,43 +210,147 @@ geo::SweepResult CollisionWorld::sweep(const Shape& shape, const Pose& X_W0, con
   return best;
 }
 
-double CollisionWorld::depthIn(const Object& o, const Shape& shape, const Pose& X_WB) const {
-  const Pose X_OB = o.X_WO.inverse() * X_WB;
-  double depth = 0.0;
-  geo::NearTriangle c;
-  const geo::Aabb& rb = o.reference->bounds();
+namespace {
+/// Depth (m) of point p (body frame) inside the shape (< 0 outside) and the shape's outward
+/// normal there (body frame): r − signed distance to the core.
+double depthInShape(const Shape& shape, const Vec3& p, Vec3* n) {
+  if (shape.type == ShapeType::Box) {
+    const Vec3 q = p.cwiseAbs() - shape.half_extents;
+    if ((q.array() <= 0.0).all()) {  // inside: out through the nearest face
+      int k = 0;
+      q.maxCoeff(&k);
+      *n = Vec3::Zero();
+      (*n)[k] = p[k] >= 0.0 ? 1.0 : -1.0;
+      return -q[k];
+    }
+    const Vec3 out = q.cwiseMax(0.0);
+    const double d = out.norm();
+    *n = out.cwiseProduct(p.cwiseSign()) / d;
+    return -d;
+  }
+  const double h = shape.type == ShapeType::Capsule ? shape.half_length : 0.0;
+  const Vec3 c(0, 0, std::clamp(p.z(), -h, h));
+  const Vec3 v = p - c;
+  const double d = v.norm();
+  *n = d > 0.0 ? Vec3(v / d) : Vec3::UnitZ();
+  return shape.radius - d;
+}
+
+/// Points of the shape's core, body frame: its centre, its extreme points (a capsule's ends, a
+/// box's corners) and points along its edges (a box's 12 edges, a capsule's axis).
+int corePoints(const Shape& shape, Vec3* pts) {
+  int np = 0;
+  pts[np++] = Vec3::Zero();
+  if (shape.type == ShapeType::Capsule) {
+    for (int k = -4; k <= 4; ++k)
+      if (k != 0) pts[np++] = Vec3(0, 0, shape.half_length * k / 4.0);
+  } else if (shape.type == ShapeType::Box) {
+    const Vec3& e = shape.half_extents;
+    for (int k = 0; k < 8; ++k) pts[np++] = Vec3((k & 1) ? 1 : -1, (k & 2) ? 1 : -1, (k & 4) ? 1 : -1).cwiseProduct(e);
+    for (int axis = 0; axis < 3; ++axis)
+      for (int k = 0; k < 4; ++k)
+        for (int s = 1; s < 4; ++s) {  // 3 interior points on each of the 12 edges
+          Vec3 q((k & 1) ? 1 : -1, (k & 2) ? 1 : -1, 0);
+          Vec3 pt;
+          pt[axis] = (s - 2) * 0.5;
+          pt[(axis + 1) % 3] = q.x();
+          pt[(axis + 2) % 3] = q.y();
+          pts[np++] = pt.cwiseProduct(e);
+        }
+  }
+  return np;
+}
+constexpr int kMaxCorePoints = 1 + 8 + 36;
+}  // namespace
+
+CollisionWorld::Overlap CollisionWorld::overlapIn(const geo::MeshBvh& mesh, const Pose& X_WO, const Shape& shape,
+                                                  const Pose& X_WB) const {
+  Overlap best;
+  const Pose X_OB = X_WO.inverse() * X_WB;
+  const double r = geo::coreRadius(shape);
+  const geo::Aabb& rb = mesh.bounds();
   auto in_box = [&](const Vec3& p) { return (p.array() >= rb.lo.array()).all() && (p.array() <= rb.hi.array()).all(); };
-  if (in_box(X_OB.p) && o.reference->inside(X_OB.p)) {
-    o.reference->closest(shape, X_OB, kInf, &c);
-    depth = c.closest.core_distance + geo::coreRadius(shape);
-  } else if (o.reference->closest(shape, X_OB, 0.0, &c)) {
-    depth = std::max(0.0, -c.closest.distance);
-    if (c.closest.core_distance <= 0.0) {
-      // The core itself crosses the surface: the shell overlap (r) understates it. The depth
-      // is that of the core's deepest extreme point inside (a capsule's ends, a box's
-      // corners) plus the radius.
-      Vec3 pts[8];
-      int np = 0;
-      if (shape.type == ShapeType::Capsule) {
-        const Vec3 h = X_OB.q * Vec3(0, 0, shape.half_length);
-        pts[np++] = X_OB.p + h;
-        pts[np++] = X_OB.p - h;
-      } else if (shape.type == ShapeType::Box) {
-        for (int k = 0; k < 8; ++k)
-          pts[np++] = X_OB * Vec3((k & 1) ? 1 : -1, (k & 2) ? 1 : -1, (k & 4) ? 1 : -1).cwiseProduct(shape.half_extents);
+  geo::NearTriangle c;
+  const bool origin_inside = in_box(X_OB.p) && mesh.inside(X_OB.p);
+  if (!origin_inside) {
+    if (!mesh.closest(shape, X_OB, 0.0, &c)) return best;  // apart
+    best.depth = std::max(0.0, -c.closest.distance);       // the rounded shell's overlap
+    best.n_W = X_WO.q * c.closest.n;
+    if (c.closest.core_distance > 0.0) return best;         // the cores do not cross
+  }
+  // The cores cross (or the body's origin is inside): the depth is that of the deepest witness,
+  // a point of the body inside the object or a point of the object inside the body. Two solids
+  // overlap only where an edge of one crosses the other, so the body's core points (its centre,
+  // ends, corners and edges) and the deepest point of each of the object's edges near the body
+  // (depth inside a convex shape is concave along a line: a golden-section search) find it.
+  Shape point;
+  point.type = ShapeType::Sphere;
+  point.radius = 0.0;
+  Vec3 pts[kMaxCorePoints];
+  const int np = corePoints(shape, pts);
+  for (int k = 0; k < np; ++k) {
+    const Vec3 q = X_OB * pts[k];
+    if (!in_box(q) || !mesh.inside(q)) continue;
+    geo::NearTriangle e;
+    if (!mesh.closest(point, Pose{q, Quat::Identity()}, kInf, &e)) continue;
+    const double depth = e.closest.core_distance + r;
+    if (depth > best.depth) {
+      best.depth = depth;
+      // From the point out through the nearest surface: the object leaves along −n.
+      const Vec3 out = e.closest.p_triangle - q;
+      best.n_W = X_WO.q * (out.norm() > 0.0 ? Vec3(out.normalized()) : Vec3(-e.closest.n));
+    }
+  }
+  // The object's edges inside the body.
+  geo::Aabb box_O = geo::shapeAabb(shape, X_OB);
+  tris_.clear();
+  mesh.trianglesOverlapping(box_O, &tris_);
+  const Pose X_BO = X_OB.inverse();
+  const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
+  for (int t : tris_) {
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 a = X_BO * mesh.mesh().vertex(t, k), b = X_BO * mesh.mesh().vertex(t, (k + 1) % 3);
+      Vec3 n_B;
+      auto depthAt = [&](double u) { return depthInShape(shape, a + u * (b - a), &n_B); };
+      double lo = 0.0, hi = 1.0;
+      double x1 = hi - phi * (hi - lo), x2 = lo + phi * (hi - lo);
+      double f1 = depthAt(x1), f2 = depthAt(x2);
+      for (int it = 0; it < 40 && hi - lo > 1e-9; ++it) {
+        if (f1 < f2) {
+          lo = x1;
+          x1 = x2;
+          f1 = f2;
+          x2 = lo + phi * (hi - lo);
+          f2 = depthAt(x2);
+        } else {
+          hi = x2;
+          x2 = x1;
+          f2 = f1;
+          x1 = hi - phi * (hi - lo);
+          f1 = depthAt(x1);
+        }
       }
-      Shape point;
-      point.type = ShapeType::Sphere;
-      point.radius = 0.0;
-      for (int k = 0; k < np; ++k) {
-        if (!in_box(pts[k]) || !o.reference->inside(pts[k])) continue;
-        geo::NearTriangle e;
-        if (o.reference->closest(point, Pose{pts[k], Quat::Identity()}, kInf, &e))
-          depth = std::max(depth, e.closest.core_distance + geo::coreRadius(shape));
+      double u_best = 0.5 * (lo + hi), f_best = depthAt(u_best);
+      for (double u : {0.0, 1.0}) {
+        const double f = depthAt(u);
+        if (f > f_best) {
+          f_best = f;
+          u_best = u;
+        }
+      }
+      if (f_best > best.depth) {
+        depthAt(u_best);
+        best.depth = f_best;
+        // The object's point leaves the body through the body's nearest surface: along −n.
+        best.n_W = X_WB.q * Vec3(-n_B);
       }
     }
   }
-  return depth;
+  return best;
+}
+
+double CollisionWorld::depthIn(const Object& o, const Shape& shape, const Pose& X_WB) const {
+  return o.reference ? overlapIn(*o.reference, o.X_WO, shape, X_WB).depth : 0.0;
 }
 
 bool CollisionWorld::deeperAlong(const Object& o, const Shape& shape, const Pose& X_W0, const Pose& X_W1) const {
@@ -278,17 +382,18 @@ double CollisionWorld::signedDistance(int object, const Shape& shape, const Pose
   const Object& o = objects_[static_cast<size_t>(object)];
   if (!o.god || !o.box_W.overlaps(geo::shapeAabb(shape, X_WB).inflated(range))) return kInf;
   const Pose X_OB = o.X_WO.inverse() * X_WB;
+  geo::NearTriangle c;
   const geo::Aabb& gb = o.god->bounds();
   const bool in_box = (X_OB.p.array() >= gb.lo.array()).all() && (X_OB.p.array() <= gb.hi.array()).all();
-  geo::NearTriangle c;
-  if (in_box && o.god->inside(X_OB.p)) {
-    o.god->closest(shape, X_OB, kInf, &c);
-    if (n_W) *n_W = -(o.X_WO.q * c.closest.n);
-    return -(c.closest.core_distance + geo::coreRadius(shape));
+  if (!(in_box && o.god->inside(X_OB.p)) && !o.god->closest(shape, X_OB, range, &c)) return kInf;
+  if (!(in_box && o.god->inside(X_OB.p)) && c.closest.core_distance > 0.0) {  // apart, or shells overlap
+    if (n_W) *n_W = o.X_WO.q * c.closest.n;
+    return c.closest.distance;
   }
-  if (!o.god->closest(shape, X_OB, range, &c)) return kInf;
-  if (n_W) *n_W = o.X_WO.q * c.closest.n;
-  return c.closest.distance;
+  // The cores cross: the depth of the deepest witness (overlapIn), not the 0 of crossing cores.
+  const Overlap ov = overlapIn(*o.god, o.X_WO, shape, X_WB);
+  if (n_W) *n_W = ov.n_W;
+  return -ov.depth;
 }
 
 double CollisionWorld::clearance(const Shape& shape, const Pose& X_WB, double range) const {

@@ -14,9 +14,16 @@
 // body origin decides inside/outside, and a body found inside gets its normals flipped and its
 // distances made negative, so that its rows push it out instead of further in.
 //
-// Penetration (METHOD.md §5): exact depth against the full-resolution reference meshes:
-// max(0, −d) with d the exact shape–mesh distance, or, when the body origin is inside the mesh
-// (winding number > ½), the distance from the body's core to the surface plus its radius.
+// Penetration (METHOD.md §5): depth against the full-resolution reference meshes. While the
+// cores are apart it is the rounded shell's overlap max(0, −d), d the exact shape–mesh distance.
+// Where they cross (or the body's origin is inside, winding number > ½) it is the depth of the
+// deepest witness: a point of the body's core (centre, ends, corners, points along its edges)
+// inside the mesh (its distance to the surface plus the radius), or a point of a mesh edge near
+// the body inside the body (deepest point per edge by golden-section search, exact for the
+// concave depth of a convex shape). Two solids overlap only where an edge of one crosses the
+// other, so this sees a cube's corner in a palm's face and a bar's edge across it, which the
+// distance alone reads as touching. The scene's push-out and the start search use the same
+// measure on the God meshes (signedDistance).
 #pragma once
 
 #include <cstdint>
@@ -73,6 +80,13 @@ class CollisionWorld {
 
  private:
   struct Object;
+  /// How deep the shape at X_WB is in a mesh at X_WO (m, ≥ 0) and the unit direction from the
+  /// object towards the shape (the object leaves the overlap along −n_W).
+  struct Overlap {
+    double depth = 0.0;
+    Vec3 n_W = Vec3::UnitZ();
+  };
+  Overlap overlapIn(const geo::MeshBvh& mesh, const Pose& X_WO, const Shape& shape, const Pose& X_WB) const;
   /// Exact depth (≥ 0, m) of the shape in one object's reference mesh.
   double depthIn(const Object& o, const Shape& shape, const Pose& X_WB) const;
   /// A motion of a body that starts inside `o` ends, or passes a quarter point, deeper in it.
@@ -92,6 +106,7 @@ class CollisionWorld {
   std::vector<geo::NearTriangle> near_, shell_;  // scratch
   std::vector<int> order_, sample_;       // scratch
   std::vector<int> kept_;                 // scratch
+  mutable std::vector<int> tris_;         // scratch of overlapIn
 };
 
 }  // namespace godhand

@@ -244,7 +244,9 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
     if (s.started_inside) *started_inside = true;
     blocked_[b] = s.hit ? 1 : 0;
     body_toc_[b] = s.toc;
-    if ((trace_ >= 2 && s.toc < 1.0) || trace_ >= 3)
+    if ((trace_ >= 2 && (s.toc < 1.0 || collision_.penetration(model_.bodies[b].shape, X1[b]) >
+                                               collision_.penetration(model_.bodies[b].shape, X0[b]) + 1e-7)) ||
+        trace_ >= 3)
       emit(params_, "trace: body %zu toc %.3g hit %d inside %d it %d d %.3g move %.3g pen0 %.3g pen1 %.3g\n", b, s.toc, s.hit,
                    s.started_inside, s.iterations, s.distance, (X1[b].p - X0[b].p).norm(),
                    collision_.penetration(model_.bodies[b].shape, X0[b]), collision_.penetration(model_.bodies[b].shape, X1[b]));
@@ -555,10 +557,13 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
       applyForces(static_cast<int>(h), *p);
       r.X = p->X_new;
       r.merge_us = usSince(t0);
-      if (trace_ >= 1)
-        emit(params_, "trace: frame %llu hand %zu rounds %d toc %.3g gap %.3g contacts %d inside %d pen %.3g\n",
+      if (trace_ >= 1) {
+        int o = -1;
+        const double pen = penetration(static_cast<int>(h), &o);
+        emit(params_, "trace: frame %llu hand %zu rounds %d toc %.3g gap %.3g contacts %d inside %d pen %.3g object %d scene step %llu\n",
                      static_cast<unsigned long long>(frame), h, p->substeps, r.toc, r.joint_errors.gap, r.contacts,
-                     r.started_inside, penetration(static_cast<int>(h)));
+                     r.started_inside, pen, o, static_cast<unsigned long long>(scene_step_));
+      }
       continue;
     }
     ++counters_.reswept;
@@ -566,9 +571,17 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
     Clock::time_point t0 = Clock::now();
     double toc = 1.0;
     for (size_t b = 0; b < n; ++b) {
-      const geo::SweepResult s = collision_.sweep(hand.model->bodies[b].shape, hand.X_from[b], p->X_new[b], params_.sweep);
+      const Shape& shape = hand.model->bodies[b].shape;
+      const geo::SweepResult s = collision_.sweep(shape, hand.X_from[b], p->X_new[b], params_.sweep);
       if (s.started_inside) r.started_inside = true;
       toc = std::min(toc, s.toc);
+      if (trace_ >= 2) {
+        int o0 = -1, o1 = -1;
+        const double pen0 = collision_.penetration(shape, hand.X_from[b], &o0), pen1 = collision_.penetration(shape, p->X_new[b], &o1);
+        if (pen1 > pen0 + 1e-7)
+          emit(params_, "trace: frame %llu hand %zu body %zu deeper: pen %.3g (object %d) -> %.3g (object %d), toc %.3g hit %d inside %d\n",
+               static_cast<unsigned long long>(frame), h, b, pen0, o0, pen1, o1, s.toc, s.hit, s.started_inside);
+      }
     }
     if (r.started_inside) ++counters_.started_inside;
     r.toc = std::min(toc, p->toc);
@@ -610,10 +623,13 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
     }
     if (r.clipped) ++counters_.clipped_steps;
     r.merge_us = usSince(t0);
-    if (trace_ >= 1)
-      emit(params_, "trace: frame %llu hand %zu toc %.3g gap %.3g contacts %d inside %d pen %.3g\n",
-                   static_cast<unsigned long long>(frame), h, toc, r.joint_errors.gap, r.contacts, r.started_inside,
-                   penetration(static_cast<int>(h)));
+    if (trace_ >= 1) {
+      int o = -1;
+      const double pen = penetration(static_cast<int>(h), &o);
+      emit(params_, "trace: frame %llu hand %zu toc %.3g gap %.3g contacts %d inside %d pen %.3g object %d scene step %llu\n",
+                   static_cast<unsigned long long>(frame), h, toc, r.joint_errors.gap, r.contacts, r.started_inside, pen, o,
+                   static_cast<unsigned long long>(scene_step_));
+    }
   }
   for (size_t h = 0; h < hands_.size(); ++h) {
     const Hand& hand = hands_[h];
@@ -623,12 +639,19 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
   }
 }
 
-double Resolver::penetration(int hand) const {
+double Resolver::penetration(int hand, int* object) const {
   const Hand& h = hands_[static_cast<size_t>(hand)];
+  if (object) *object = -1;
   if (!h.result.started) return 0.0;
   double deepest = 0.0;
-  for (size_t b = 0; b < h.result.X.size(); ++b)
-    deepest = std::max(deepest, collision_.penetration(h.model->bodies[b].shape, h.result.X[b]));
+  for (size_t b = 0; b < h.result.X.size(); ++b) {
+    int o = -1;
+    const double d = collision_.penetration(h.model->bodies[b].shape, h.result.X[b], &o);
+    if (d > deepest) {
+      deepest = d;
+      if (object) *object = o;
+    }
+  }
   return deepest;
 }
 

@@ -302,7 +302,7 @@ class Resolver {
   const CollisionWorld& collision() const { return collision_; }
   /// Exact penetration (m, ≥ 0) of a hand's last result against the reference meshes of the
   /// scene as the resolver last saw it.
-  double penetration(int hand) const;
+  double penetration(int hand, int* object = nullptr) const;
 
  private:
   struct Hand {

@@ -622,22 +622,28 @@ int main(int argc, char** argv) {
     } else {
       double pen = 0;
       long deepest = -1;
+      int deepest_object = -1;
       for (size_t b = 0; b < h.poses().size() && b < h.shapes().size(); ++b) {
         Shape s;
         s.type = static_cast<ShapeType>(std::min<int>(h.shapes()[b].type(), 2));
         s.radius = h.shapes()[b].radius();
         s.half_length = h.shapes()[b].half_length();
         s.half_extents = Vec3(h.shapes()[b].half_extents()[0], h.shapes()[b].half_extents()[1], h.shapes()[b].half_extents()[2]);
-        const double pb = world.penetration(s, svc::fromWire(h.poses()[b]));
+        int object = -1;
+        const double pb = world.penetration(s, svc::fromWire(h.poses()[b]), &object);
         if (pb > pen) {
           pen = pb;
           deepest = static_cast<long>(b);
+          deepest_object = object;
         }
       }
       if (pen > rep.penetration_max_m) {
         RunReport::Worst& w = rep.penetration_worst;
         w.hand = h.hand();
         w.body = deepest;
+        w.object = deepest_object >= 0 && static_cast<size_t>(deepest_object) < scene.objects.size()
+                       ? scene.objects[static_cast<size_t>(deepest_object)].id
+                       : std::string();
         w.frame = h.stamp().frame();
         w.scene_step = h.scene_step();
         w.own_scene = own_scene;

@@ -44,7 +44,8 @@ void printSummary(const RunReport& r) {
     for (const HandSummary& h : r.plausibility.hands) std::printf("  %s\n", describe(h).c_str());
   if (r.penetration_max_m > r.margin_m) {
     const RunReport::Worst& w = r.penetration_worst;
-    std::printf("  deepest state: hand %ld body %ld, frame %llu, scene step %llu (%s), %s%s, toc %.3f, at %s\n", w.hand, w.body,
+    std::printf("  deepest state: hand %ld body %ld in '%s', frame %llu, scene step %llu (%s), %s%s, toc %.3f, at %s\n", w.hand, w.body,
+                w.object.c_str(),
                 static_cast<unsigned long long>(w.frame), static_cast<unsigned long long>(w.scene_step),
                 w.own_scene ? "its own scene state" : "scored against the newest scene state", w.tracked ? "tracked" : "untracked",
                 w.stale ? ", stale" : "", w.toc, secs(w.replay_s).c_str());
@@ -108,7 +109,7 @@ nlohmann::json reportJson(const RunReport& r) {
   j["penetration_unscored_states"] = r.penetration_unscored;
   if (r.penetration_max_m > 0) {
     const RunReport::Worst& w = r.penetration_worst;
-    j["penetration_worst"] = {{"hand", w.hand}, {"body", w.body}, {"frame", w.frame}, {"scene_step", w.scene_step},
+    j["penetration_worst"] = {{"hand", w.hand}, {"body", w.body}, {"object", w.object}, {"frame", w.frame}, {"scene_step", w.scene_step},
                               {"own_scene_state", w.own_scene}, {"tracked", w.tracked}, {"stale", w.stale}, {"toc", w.toc},
                               {"replay_s", orNull(w.replay_s)}};
   }

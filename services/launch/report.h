@@ -73,6 +73,7 @@ struct RunReport {
   /// The state that scored penetration_max_m (when > 0): where to look.
   struct Worst {
     long hand = -1, body = -1;
+    std::string object;  ///< the scene object it was inside
     std::uint64_t frame = 0, scene_step = 0;
     bool own_scene = false, tracked = false, stale = false;
     double toc = 1, replay_s = -1;

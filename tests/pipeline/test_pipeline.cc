@@ -306,6 +306,73 @@ TEST(Pipeline, ResolverSweepsAgainAProposalOfAnotherSceneStateOfTheSameFrame) {
   EXPECT_LT(resolver.result(0).X[0].p.x(), -0.05 + 1e-6);
 }
 
+// Two solids overlap where an edge of one crosses the other. With box cores neither the body's
+// origin nor any of its corners need be inside the object: a cube's corner in the palm's face, a
+// bar's edge across it. The depth is that of the deepest such point (analytic here); before, the
+// crossing cores read as touching (depth 0), and the scene did not push a light box out of a
+// palm it had tilted into (CI 2026-12-01: 0.137 mm; 2.8 mm in reproductions under load).
+TEST(Pipeline, PenetrationSeesAnObjectEdgeOrCornerInsideTheBody) {
+  Shape palm;
+  palm.type = ShapeType::Box;
+  palm.half_extents = Vec3(0.04, 0.04, 0.01);
+  const Pose X_palm = at(0, 0, 0);
+  const double depth = 0.002;
+  // A 1 cm cube standing on a corner: its body diagonal vertical, lowest corner `depth` below
+  // the palm's top face.
+  const Vec3 half(0.005, 0.005, 0.005);
+  const Quat q_corner = Quat::FromTwoVectors(Vec3(1, 1, 1).normalized(), Vec3::UnitZ());
+  const double h = half.norm();  // centre to corner
+  // A bar 12 cm long (longer than the palm) turned 45° about its axis: its lowest edge `depth`
+  // into the top face, its ends outside the palm.
+  const Vec3 bar(0.06, 0.004, 0.004);
+  const Quat q_edge(Eigen::AngleAxisd(0.25 * 3.14159265358979323846, Vec3::UnitX()));
+  const double e = 0.004 * std::sqrt(2.0);
+  struct Case {
+    const char* name;
+    Vec3 half;
+    Pose X_WO;
+  } cases[] = {{"cube corner", half, Pose{Vec3(0.01, -0.005, 0.01 - depth + h), q_corner}},
+               {"bar edge", bar, Pose{Vec3(0.0, 0.01, 0.01 - depth + e), q_edge}}};
+  for (const Case& c : cases) {
+    const Scene scene = sceneOf({boxObject("object", c.half, c.X_WO, 0.2)});
+    const CollisionWorld world(scene);
+    int object = -1;
+    EXPECT_NEAR(world.penetration(palm, X_palm, &object), depth, 1e-6) << c.name;
+    EXPECT_EQ(object, 0) << c.name;
+    Vec3 n;
+    EXPECT_NEAR(world.signedDistance(0, palm, X_palm, 0.01, &n), -depth, 1e-6) << c.name;
+    EXPECT_GT(n.dot(Vec3(0, 0, -1)), 0.99) << c.name << ": the object leaves upwards (along -n)";
+    // Lifted by depth + 1 µm, it is out.
+    Pose X_up = X_palm;
+    X_up.p.z() -= depth + 1e-6;
+    EXPECT_EQ(world.penetration(palm, X_up), 0.0) << c.name;
+  }
+}
+
+// The scene pushes a dynamic object that overlaps a God object out of it (paper §6.2), however
+// they cross: here a cube's corner 2 mm into a palm's face (no corner of the palm in the cube).
+TEST(Pipeline, TheScenePushesAnObjectOutOfAPalmItsCornerIsIn) {
+  Shape palm;
+  palm.type = ShapeType::Box;
+  palm.half_extents = Vec3(0.04, 0.04, 0.01);
+  const Vec3 half(0.005, 0.005, 0.005);
+  const Quat q_corner = Quat::FromTwoVectors(Vec3(1, 1, 1).normalized(), Vec3::UnitZ());
+  const Scene scene = sceneOf({boxObject("cube", half, Pose{Vec3(0.01, -0.005, 0.01 - 0.002 + half.norm()), q_corner}, 0.2)},
+                              Vec3::Zero());
+  PipelineParams params = paramsFor(1.0 / 60);
+  SceneStage stage(scene, params, physicsParamsFor(60, 240));
+  ForceSet forces;
+  forces.frame = 1;
+  forces.bodies.push_back(GodBody{0, 0, palm, at(0, 0, 0)});
+  const SceneSnapshot& s = stage.step(&forces, 1);
+  EXPECT_GE(s.pushouts, 1);
+  CollisionWorld world(scene);
+  ASSERT_EQ(s.objects.size(), 1u);
+  world.setObjectPose(0, s.objects[0].X);
+  EXPECT_LE(world.penetration(palm, at(0, 0, 0)), params.step.rows.margin) << "the cube is pushed out of the palm";
+  EXPECT_GT(s.objects[0].X.p.z(), 0.01 - 0.002 + half.norm() + 0.0015) << "upwards, out of the face it was in";
+}
+
 // A body that starts inside an object (a dynamic object moved into it, a live solver's older
 // scene) cannot be clipped (no time of contact), but it may only recede or slide: a motion that
 // takes it deeper does not move at all. Oracle: the analytic depth of a box resting 1 mm into
