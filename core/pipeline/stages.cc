@@ -70,6 +70,7 @@ void PipelineParams::validate() const {
   require(max_force_per_contact > 0 && max_force_per_hand > 0, "force bounds must be > 0");
   require(resolve_iterations >= 0 && resolve_iterations <= 100, "resolve_iterations must be in [0, 100]");
   require(finiteNonNeg(start_clearance), "start_clearance must be >= 0");
+  require(std::isfinite(max_start_shift) && max_start_shift > 0.0, "max_start_shift must be > 0");
 }
 
 PhysicsParams physicsParamsFor(double frame_rate, double physics_hz) {
@@ -157,14 +158,14 @@ bool HandSolver::freeStart(std::vector<Pose>* X, Vec3* shift) const {
     const double need = worst(offset, &n_W);
     if (need <= 0.0) {
       *shift = offset;
-      return true;
+      return offset.norm() <= params_.max_start_shift;
     }
     if (!n_W.allFinite() || n_W.norm() < 0.5) break;
     offset += n_W.normalized() * (need + 0.5 * want);
   }
   // (A search of the shortest free translation along 26 directions was tried: it started the
   // pinch hand on another side of the bunny, where it froze in 146 of 166 windows; not kept.)
-  for (double h = 0.01; h <= 4.0; h *= 2.0) {
+  for (double h = 0.01; h <= params_.max_start_shift; h *= 2.0) {
     Vec3 unused;
     if (worst(Vec3(0, 0, h), &unused) <= 0.0) {
       *shift = Vec3(0, 0, h);

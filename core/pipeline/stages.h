@@ -67,6 +67,10 @@ struct PipelineParams {
   int resolve_iterations = 4;         ///< scene push-out passes (paper §6.2)
   bool simulate = true;               ///< false: dynamic objects stay put (pure God-object run)
   double start_clearance = 2e-4;      ///< m: a start pose closer than this is not free
+  /// m: a free start pose farther than this from the targets is no start (the hand stays
+  /// unstarted, reported): a mesh that encloses the tracking volume (a CAD part in millimetres
+  /// read as metres) has its nearest way out metres away, where the user would never see it.
+  double max_start_shift = 0.5;
   /// Solve -> sweep rounds per frame (Ortega et al., Redon; METHOD.md §2 step 5): after a clip
   /// the contacts at the clipped pose are found and the rest of the motion towards the same
   /// targets is solved and swept again, at most this many rounds in all.
