@@ -261,6 +261,59 @@ int corePoints(const Shape& shape, Vec3* pts) {
   return np;
 }
 constexpr int kMaxCorePoints = 1 + 8 + 36;
+
+/// The largest depth inside the shape (body frame) of a point of segment ab, if it exceeds
+/// `floor` (else any value ≤ floor), and the shape's outward normal there. Sphere and capsule:
+/// r − the segment's distance to the core, exact. Box: the depth min_i (h_i − |p_i|) is concave
+/// and piecewise linear along the segment, so its maximum is at an end or where two of its six
+/// lines cross; each axis alone bounds it, which skips most segments.
+double deepestOnSegment(const Shape& shape, const Vec3& a, const Vec3& b, double floor, Vec3* n) {
+  if (shape.type != ShapeType::Box) {
+    const double h = shape.type == ShapeType::Capsule ? shape.half_length : 0.0;
+    Vec3 on_seg, on_core;
+    const double d = geo::segmentSegmentDistance(a, b, Vec3(0, 0, -h), Vec3(0, 0, h), &on_seg, &on_core);
+    const double depth = shape.radius - d;
+    if (depth > floor) depthInShape(shape, on_seg, n);
+    return depth;
+  }
+  const Vec3& e = shape.half_extents;
+  const Vec3 d = b - a;
+  for (int i = 0; i < 3; ++i) {  // h_i − min_t |a_i + t d_i| bounds the depth
+    const bool crosses = (a[i] <= 0.0) != (b[i] <= 0.0);
+    const double m = crosses ? 0.0 : std::min(std::abs(a[i]), std::abs(b[i]));
+    if (e[i] - m <= floor) return floor;
+  }
+  // Lines s = h_i − σ (a_i + t d_i), σ = ±1: the candidates are t = 0, 1 and their crossings.
+  double cand[2 + 15];
+  int nc = 0;
+  cand[nc++] = 0.0;
+  cand[nc++] = 1.0;
+  double c0[6], c1[6];  // line j: c0 + c1 t
+  for (int j = 0; j < 6; ++j) {
+    const int i = j / 2;
+    const double sg = (j & 1) ? -1.0 : 1.0;
+    c0[j] = e[i] - sg * a[i];
+    c1[j] = -sg * d[i];
+  }
+  for (int j = 0; j < 6; ++j)
+    for (int l = j + 1; l < 6; ++l) {
+      const double den = c1[j] - c1[l];
+      if (den == 0.0) continue;
+      const double t = (c0[l] - c0[j]) / den;
+      if (t > 0.0 && t < 1.0) cand[nc++] = t;
+    }
+  double best = -std::numeric_limits<double>::infinity(), t_best = 0.0;
+  for (int c = 0; c < nc; ++c) {
+    double s = std::numeric_limits<double>::infinity();
+    for (int j = 0; j < 6; ++j) s = std::min(s, c0[j] + c1[j] * cand[c]);
+    if (s > best) {
+      best = s;
+      t_best = cand[c];
+    }
+  }
+  if (best > floor) depthInShape(shape, a + t_best * d, n);
+  return best;
+}
 }  // namespace
 
 CollisionWorld::Overlap CollisionWorld::overlapIn(const geo::MeshBvh& mesh, const Pose& X_WO, const Shape& shape,
@@ -301,46 +354,25 @@ CollisionWorld::Overlap CollisionWorld::overlapIn(const geo::MeshBvh& mesh, cons
       best.n_W = X_WO.q * (out.norm() > 0.0 ? Vec3(out.normalized()) : Vec3(-e.closest.n));
     }
   }
-  // The object's edges inside the body.
+  // The object's edges inside the body: the deepest point of each.
   geo::Aabb box_O = geo::shapeAabb(shape, X_OB);
   tris_.clear();
   mesh.trianglesOverlapping(box_O, &tris_);
   const Pose X_BO = X_OB.inverse();
-  const double phi = 0.5 * (std::sqrt(5.0) - 1.0);
+  const Mat3 R_BO = X_BO.q.toRotationMatrix();
   for (int t : tris_) {
+    const Vec3 v[3] = {R_BO * mesh.mesh().vertex(t, 0) + X_BO.p, R_BO * mesh.mesh().vertex(t, 1) + X_BO.p,
+                       R_BO * mesh.mesh().vertex(t, 2) + X_BO.p};
+    // No point of the triangle is deeper than its bounding sphere's centre allows.
+    const Vec3 c = (v[0] + v[1] + v[2]) / 3.0;
+    const double rho = std::sqrt(std::max({(v[0] - c).squaredNorm(), (v[1] - c).squaredNorm(), (v[2] - c).squaredNorm()}));
+    Vec3 unused;
+    if (depthInShape(shape, c, &unused) + rho <= best.depth) continue;
     for (int k = 0; k < 3; ++k) {
-      const Vec3 a = X_BO * mesh.mesh().vertex(t, k), b = X_BO * mesh.mesh().vertex(t, (k + 1) % 3);
       Vec3 n_B;
-      auto depthAt = [&](double u) { return depthInShape(shape, a + u * (b - a), &n_B); };
-      double lo = 0.0, hi = 1.0;
-      double x1 = hi - phi * (hi - lo), x2 = lo + phi * (hi - lo);
-      double f1 = depthAt(x1), f2 = depthAt(x2);
-      for (int it = 0; it < 40 && hi - lo > 1e-9; ++it) {
-        if (f1 < f2) {
-          lo = x1;
-          x1 = x2;
-          f1 = f2;
-          x2 = lo + phi * (hi - lo);
-          f2 = depthAt(x2);
-        } else {
-          hi = x2;
-          x2 = x1;
-          f2 = f1;
-          x1 = hi - phi * (hi - lo);
-          f1 = depthAt(x1);
-        }
-      }
-      double u_best = 0.5 * (lo + hi), f_best = depthAt(u_best);
-      for (double u : {0.0, 1.0}) {
-        const double f = depthAt(u);
-        if (f > f_best) {
-          f_best = f;
-          u_best = u;
-        }
-      }
-      if (f_best > best.depth) {
-        depthAt(u_best);
-        best.depth = f_best;
+      const double depth = deepestOnSegment(shape, v[k], v[(k + 1) % 3], best.depth, &n_B);
+      if (depth > best.depth) {
+        best.depth = depth;
         // The object's point leaves the body through the body's nearest surface: along −n.
         best.n_W = X_WB.q * Vec3(-n_B);
       }

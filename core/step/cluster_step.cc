@@ -272,10 +272,16 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
   // Newton projection can diverge when a body's contacts, e.g. the exits of a body that started
   // inside an object, conflict with its joints; seen live: gaps of 0.3 m). The motion is halved
   // and projected again, kShortenings times; then the previous state is kept (below).
-  const JointErrors before = jointErrors(model_, X_prev_.data());
+  // The errors before the step are measured only when the projection did not close (rare).
+  JointErrors before;
+  bool have_before = false;
   auto opened = [&] {
-    return params_.projection_iterations > 0 && !jointsClosed(report_.joint_errors, params_) &&
-           std::max(report_.joint_errors.gap, report_.joint_errors.lock) > std::max(before.gap, before.lock);
+    if (params_.projection_iterations <= 0 || jointsClosed(report_.joint_errors, params_)) return false;
+    if (!have_before) {
+      before = jointErrors(model_, X_prev_.data());
+      have_before = true;
+    }
+    return std::max(report_.joint_errors.gap, report_.joint_errors.lock) > std::max(before.gap, before.lock);
   };
   report_.shortened = 0;
   for (double scale = 0.5; opened() && report_.shortened < kShortenings; scale *= 0.5) {
