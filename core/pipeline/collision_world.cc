@@ -354,10 +354,19 @@ CollisionWorld::Overlap CollisionWorld::overlapIn(const geo::MeshBvh& mesh, cons
       best.n_W = X_WO.q * (out.norm() > 0.0 ? Vec3(out.normalized()) : Vec3(-e.closest.n));
     }
   }
-  // The object's edges inside the body: the deepest point of each.
-  geo::Aabb box_O = geo::shapeAabb(shape, X_OB);
+  // The object's edges inside the body: the deepest point of each. A point deeper than the
+  // deepest witness so far lies inside the shape eroded by that depth (exact for boxes, capsules
+  // and spheres): only triangles that reach into its box are looked at, none when it is empty.
+  Shape eroded = shape;
+  if (shape.type == ShapeType::Box) {
+    eroded.half_extents = shape.half_extents - Vec3::Constant(best.depth);
+    if ((eroded.half_extents.array() <= 0.0).any()) return best;
+  } else {
+    eroded.radius = shape.radius - best.depth;
+    if (eroded.radius <= 0.0) return best;
+  }
   tris_.clear();
-  mesh.trianglesOverlapping(box_O, &tris_);
+  mesh.trianglesOverlapping(geo::shapeAabb(eroded, X_OB), &tris_);
   const Pose X_BO = X_OB.inverse();
   const Mat3 R_BO = X_BO.q.toRotationMatrix();
   for (int t : tris_) {
