@@ -41,7 +41,8 @@ std::string jsonlFormat(const std::string& first_line) {
 
 std::string JsonlRecording::summary() const {
   std::string s = format + " lines " + std::to_string(frames.size()) + "/" + std::to_string(lines) + " kept, hands " +
-                  std::to_string(hands_kept) + " (rejected: ";
+                  std::to_string(hands_kept) + (bodies_kept ? ", 6-DOF bodies " + std::to_string(bodies_kept) : std::string()) +
+                  " (rejected: ";
   if (by_reason.empty()) s += "none";
   for (size_t i = 0; i < by_reason.size(); ++i) s += (i ? ", " : "") + by_reason[i].first + " " + std::to_string(by_reason[i].second);
   return s + ")";
@@ -142,6 +143,41 @@ JsonlRecording readJsonl(const std::string& text, const std::string& name, const
       if (!ok) { c.add(std::string("hand: ") + reasonName(why)); continue; }
       f.hands.push_back(th);
       ++rec.hands_kept;
+    }
+    if (xr) {
+      // 6-DOF bodies (a controller's aim or grip pose, a tracked object): an XrSpaceLocation in
+      // the same reference space; the body's axes are kept, expressed in T like the joints.
+      const auto bodies = j.find("bodies");
+      if (bodies != j.end() && !bodies->is_array()) c.add("body: parse error");
+      if (bodies != j.end() && bodies->is_array())
+        for (const json& body : *bodies) {
+          const auto idj = body.is_object() ? body.find("id") : body.end();
+          const auto pj = body.is_object() ? body.find("pose") : body.end();
+          const auto fj = body.is_object() ? body.find("flags") : body.end();
+          if (!body.is_object() || idj == body.end() || !idj->is_number_integer() || pj == body.end() || fj == body.end() ||
+              !fj->is_number_integer()) {
+            c.add("body: parse error");
+            continue;
+          }
+          double v[7];
+          const int bad = numbers(*pj, 7, v);
+          if (bad) { c.add(bad == 2 ? "body: NaN/Inf" : "body: parse error"); continue; }
+          const std::int64_t flags = fj->get<std::int64_t>();
+          if ((flags & 0x3) != 0x3) { c.add("body: not tracked (position or orientation invalid)"); continue; }
+          const Quat q_xr(v[6], v[3], v[4], v[5]);
+          if (std::abs(q_xr.norm() - 1.0) > 1e-3) { c.add("body: non-unit quaternion"); continue; }
+          const Vec3 p_xr(v[0], v[1], v[2]);
+          if (p_xr.norm() > 100.0) { c.add("body: beyond 100 m"); continue; }
+          Mat3 C;  // OpenXR space -> T: (x, -z, y)
+          C << 1, 0, 0, 0, 0, -1, 0, 1, 0;
+          leap::TrackedBody tb;
+          tb.id = idj->get<int>();
+          tb.quality = (flags & 0xC) == 0xC ? 1.0 : 0.5;  // tracked bits set, else inferred
+          tb.X_WB.p = X_WT * (C * p_xr);
+          tb.X_WB.q = Quat(X_WT.q.toRotationMatrix() * C * q_xr.normalized().toRotationMatrix()).normalized();
+          f.bodies.push_back(tb);
+          ++rec.bodies_kept;
+        }
     }
     have_t = true;
     last_t = tu;

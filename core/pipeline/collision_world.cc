@@ -373,10 +373,11 @@ CollisionWorld::Overlap CollisionWorld::overlapIn(const geo::MeshBvh& mesh, cons
     const Vec3 v[3] = {R_BO * mesh.mesh().vertex(t, 0) + X_BO.p, R_BO * mesh.mesh().vertex(t, 1) + X_BO.p,
                        R_BO * mesh.mesh().vertex(t, 2) + X_BO.p};
     // No point of the triangle is deeper than its bounding sphere's centre allows.
-    const Vec3 c = (v[0] + v[1] + v[2]) / 3.0;
-    const double rho = std::sqrt(std::max({(v[0] - c).squaredNorm(), (v[1] - c).squaredNorm(), (v[2] - c).squaredNorm()}));
+    const Vec3 centre = (v[0] + v[1] + v[2]) / 3.0;
+    const double rho =
+        std::sqrt(std::max({(v[0] - centre).squaredNorm(), (v[1] - centre).squaredNorm(), (v[2] - centre).squaredNorm()}));
     Vec3 unused;
-    if (depthInShape(shape, c, &unused) + rho <= best.depth) continue;
+    if (depthInShape(shape, centre, &unused) + rho <= best.depth) continue;
     for (int k = 0; k < 3; ++k) {
       Vec3 n_B;
       const double depth = deepestOnSegment(shape, v[k], v[(k + 1) % 3], best.depth, &n_B);

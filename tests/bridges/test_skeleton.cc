@@ -12,6 +12,7 @@
 
 #include "leap/leap_recording.h"
 #include "leap/retarget.h"
+#include "leap/tool_target.h"
 #include "model/hand_model.h"
 #include "skeleton/jsonl.h"
 #include "skeleton/skeleton.h"
@@ -221,6 +222,67 @@ TEST(Skeleton, OpenXrAndMediaPipeRecordingsGiveTheLeapHands) {
   { std::ofstream(badh) << "{\"format\": \"godhand-openxr-hands\", \"version\": 2}\n"; }
   EXPECT_THROW(bridges::loadRecording(badh), bridges::SourceError);
   std::remove(badh.c_str());
+}
+
+// An OpenXR 6-DOF body (a controller's aim pose) drives the shipped tool model: the body pose
+// comes out as the pose written, with the recording's axes changed to T = (x, −z, y) and the
+// tracker pose applied (oracle: the same transform written out by hand), and the tool's targets
+// are that pose. Invalid bodies are dropped and counted by reason.
+TEST(Skeleton, OpenXrBodyDrivesTheToolModel) {
+  const std::string file = tmpFile("bodies.jsonl");
+  // A body 30 cm in front of the user at eye height, turned 0.4 rad about OpenXR +Y.
+  const Vec3 p_xr(0.1, 1.2, -0.3);
+  const Quat q_xr(Eigen::AngleAxisd(0.4, Vec3::UnitY()));
+  {
+    std::ofstream f(file);
+    f.precision(17);
+    f << "{\"format\": \"godhand-openxr-hands\", \"version\": 1}\n";
+    f << "{\"time_ns\": 1000000, \"hands\": [], \"bodies\": [{\"id\": 7, \"pose\": [" << p_xr.x() << "," << p_xr.y() << ","
+      << p_xr.z() << "," << q_xr.x() << "," << q_xr.y() << "," << q_xr.z() << "," << q_xr.w() << "], \"flags\": 15}, "
+      << "{\"id\": 8, \"pose\": [0,0,0,0,0,0,1], \"flags\": 1}, {\"id\": 9, \"pose\": [0,0,0,0,0,0,2], \"flags\": 3}, "
+      << "{\"id\": 10, \"pose\": [null,0,0,0,0,0,1], \"flags\": 3}, {\"id\": 11, \"pose\": [0,0,0], \"flags\": 3}]}\n";
+  }
+  Pose X_WT;
+  X_WT.p = Vec3(0.5, -0.2, -1.0);
+  X_WT.q = Quat(Eigen::AngleAxisd(0.3, Vec3::UnitZ()));
+  std::ifstream in(file);
+  std::stringstream text;
+  text << in.rdbuf();
+  const JsonlRecording r = readJsonl(text.str(), file, X_WT);
+  std::printf("[info] %s\n", r.summary().c_str());
+  ASSERT_EQ(r.frames.size(), 1u);
+  ASSERT_EQ(r.frames[0].bodies.size(), 1u);
+  EXPECT_EQ(r.bodies_kept, 1u);
+  const leap::TrackedBody& b = r.frames[0].bodies[0];
+  EXPECT_EQ(b.id, 7);
+  EXPECT_EQ(b.quality, 1.0);
+  Mat3 C;
+  C << 1, 0, 0, 0, 0, -1, 0, 1, 0;
+  const Vec3 p_want = X_WT.q * (C * p_xr) + X_WT.p;
+  const Mat3 R_want = X_WT.q.toRotationMatrix() * C * q_xr.toRotationMatrix();
+  EXPECT_LT((b.X_WB.p - p_want).norm(), 1e-12);
+  EXPECT_LT((b.X_WB.q.toRotationMatrix() - R_want).norm(), 1e-12);
+  // OpenXR's forward (−Z) is T's +y: the body's forward axis, seen in T, is turned 0.4 rad about
+  // T's z (OpenXR +Y) from +y.
+  const Vec3 fwd_T = C * (q_xr * Vec3(0, 0, -1));
+  EXPECT_NEAR(fwd_T.z(), 0.0, 1e-12);
+  EXPECT_NEAR(std::atan2(-fwd_T.x(), fwd_T.y()), 0.4, 1e-12);
+  for (const char* reason : {"body: not tracked (position or orientation invalid) 1", "body: non-unit quaternion 1",
+                             "body: NaN/Inf 1", "body: parse error 1"})
+    EXPECT_NE(r.summary().find(reason), std::string::npos) << reason << " in " << r.summary();
+  // The tool model rides it: its one God object at its rest pose in the body's frame.
+  const HandModel tool = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/tool1.pbtxt");
+  ASSERT_TRUE(leap::isToolModel(tool));
+  std::vector<Pose> targets;
+  std::vector<unsigned char> has;
+  double quality = 0;
+  ASSERT_TRUE(leap::toolTargets(tool, r.frames[0], 7, &targets, &has, &quality));
+  ASSERT_EQ(targets.size(), 1u);
+  const Pose want = b.X_WB * tool.bodies[0].X_MB_rest;
+  EXPECT_LT((targets[0].p - want.p).norm(), 1e-12);
+  EXPECT_LT(targets[0].q.angularDistance(want.q), 1e-9);
+  EXPECT_FALSE(leap::toolTargets(tool, r.frames[0], 8, &targets, &has, &quality)) << "body 8 was not tracked";
+  std::remove(file.c_str());
 }
 
 // Aria MPS hand tracking CSV (tests/data/aria/pinch_head_v2.csv, written by make_aria.py from
