@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <deque>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -25,6 +26,7 @@
 #include "pipeline/run_metrics.h"
 #include "pipeline/run_metrics_json.h"
 #include "leap/retarget.h"
+#include "leap/tool_target.h"
 #include "model/hand_model.h"
 #include "physics/physics_world.h"
 #include "math/stats.h"
@@ -37,7 +39,7 @@ using namespace godhand;
 
 const char* kUsage =
     "usage: godhand-bench --recording FILE [--scene FILE|none | --mesh FILE[:SIZE_M] ...]\n"
-    "                     [--hand-model FILE] [--left-hand-model FILE] [--solver exact|pgs]\n"
+    "                     [--hand-model FILE] [--left-hand-model FILE] [--tool MODEL:BODY] [--solver exact|pgs]\n"
     "                     [--pgs-iterations N] [--substeps N] [--frames N] [--no-physics] [--json OUT]\n"
     "                     [--poses OUT.csv] [--tracker-pose POSE] [--hand-sides MAP] [--quiet] [--check]\n"
     "\n"
@@ -54,6 +56,9 @@ const char* kUsage =
     "                        mean palm position (repeatable)\n"
     "  --hand-model FILE     right-hand model (default deploy/models/hand16_right.pbtxt)\n"
     "  --left-hand-model FILE  left-hand model (default deploy/models/hand16_left.pbtxt)\n"
+    "  --tool MODEL:BODY     also a tool model (every body's tracker_segment \"tool\", e.g.\n"
+    "                        deploy/models/tool1.pbtxt) driven by the recording's 6-DOF body BODY (a DTrack\n"
+    "                        6d id, an OpenXR body id); its cluster is named toolBODY (repeatable)\n"
     "  --solver exact|pgs    QP solver (default exact); --pgs-iterations N sweeps (default 30)\n"
     "  --frames N            only the first N frames\n"
     "  --no-physics          dynamic objects stay put (no Bullet)\n"
@@ -84,6 +89,7 @@ struct Args {
   std::vector<std::string> meshes;
   std::string right_model = std::string(GODHAND_DEPLOY_DIR) + "/models/hand16_right.pbtxt";
   std::string left_model = std::string(GODHAND_DEPLOY_DIR) + "/models/hand16_left.pbtxt";
+  std::vector<std::pair<std::string, int>> tools;  ///< --tool MODEL:BODY
   SolverKind solver = SolverKind::Exact;
   int pgs_iterations = 30;
   long frames = -1;
@@ -140,6 +146,12 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--mesh") a.meshes.push_back(value());
     else if (f == "--hand-model") a.right_model = value();
     else if (f == "--left-hand-model") a.left_model = value();
+    else if (f == "--tool") {
+      const std::string v = value();
+      const size_t colon = v.rfind(':');
+      if (colon == std::string::npos || colon == 0) fail("--tool: expected MODEL:BODY (e.g. deploy/models/tool1.pbtxt:1), got '" + v + "'");
+      a.tools.emplace_back(v.substr(0, colon), static_cast<int>(parseCount(f, v.substr(colon + 1), 0, 1000)));
+    }
     else if (f == "--json") a.json = value();
     else if (f == "--poses") a.poses = value();
     else if (f == "--tracker-pose") a.tracker_pose = value();
@@ -190,6 +202,7 @@ int main(int argc, char** argv) {
   // Inputs: recording, models, scene. Any problem: one line, exit 2.
   bridges::LoadedRecording rec;
   HandModel right, left;
+  std::deque<HandModel> tool_models;  // stable addresses
   Scene scene;
   try {
     bridges::SourceOptions so;
@@ -203,6 +216,11 @@ int main(int argc, char** argv) {
   try {
     right = HandModel::loadFile(args.right_model);
     left = HandModel::loadFile(args.left_model);
+    for (const auto& [file, body] : args.tools) {
+      tool_models.push_back(HandModel::loadFile(file));
+      if (!leap::isToolModel(tool_models.back()))
+        fail("--tool " + file + ": not a tool model (every body needs tracker_segment \"tool\")");
+    }
   } catch (const std::exception& e) { fail(e.what()); }
   try {
     if (!args.meshes.empty()) {
@@ -220,7 +238,7 @@ int main(int argc, char** argv) {
   bool has_side[2] = {false, false};  // 0 right, 1 left
   for (const leap::TrackerFrame& f : rec.frames)
     for (const leap::TrackedHand& h : f.hands) has_side[h.right ? 0 : 1] = true;
-  std::vector<int> sides;
+  std::vector<int> sides;  // 0 right, 1 left, 2 + BODY a tool driven by 6-DOF body BODY
   std::vector<const HandModel*> models;
   std::vector<std::string> names;
   for (int s = 0; s < 2; ++s)
@@ -229,6 +247,17 @@ int main(int argc, char** argv) {
       models.push_back(s == 0 ? &right : &left);
       names.push_back(s == 0 ? "right" : "left");
     }
+  for (size_t t = 0; t < args.tools.size(); ++t) {
+    const int body = args.tools[t].second;
+    bool seen = false;
+    for (const leap::TrackerFrame& f : rec.frames)
+      for (const leap::TrackedBody& b : f.bodies) seen = seen || b.id == body;
+    if (!seen) fail("--tool " + args.tools[t].first + ":" + std::to_string(body) + ": no frame of " + args.recording +
+                    " carries 6-DOF body " + std::to_string(body) + " (" + rec.rejections + ")");
+    sides.push_back(2 + body);
+    models.push_back(&tool_models[t]);
+    names.push_back("tool" + std::to_string(body));
+  }
   if (sides.empty()) fail(args.recording + ": no tracked hands (" + rec.rejections + ")");
 
   const double rate = rec.mean_rate_hz;
@@ -252,12 +281,13 @@ int main(int argc, char** argv) {
   params.step.rows.contact_beta = args.push_out;
   std::unique_ptr<Pipeline> pipe;
   std::unique_ptr<RunMetrics> metrics;
-  std::vector<leap::Retargeter> retarget;
+  std::vector<std::unique_ptr<leap::Retargeter>> retarget;  // per cluster; none for a tool
   try {
     const PhysicsParams physics = physicsParamsFor(rate, args.physics_hz);
     pipe = std::make_unique<Pipeline>(scene, models, params, physics);
     metrics = std::make_unique<RunMetrics>(scene, models, names, params);
-    for (const HandModel* m : models) retarget.emplace_back(*m);
+    for (size_t h = 0; h < models.size(); ++h)
+      retarget.push_back(sides[h] < 2 ? std::make_unique<leap::Retargeter>(*models[h]) : nullptr);
   } catch (const std::exception& e) { fail(e.what()); }
 
   std::ofstream poses_out;
@@ -283,11 +313,19 @@ int main(int argc, char** argv) {
     const leap::TrackerFrame& f = rec.frames[fi];
     for (size_t h = 0; h < H; ++h) {
       inputs[h] = HandInput{};
+      if (sides[h] >= 2) {  // a tool: its 6-DOF body, when this frame carries it
+        double quality = 0.0;
+        if (!leap::toolTargets(*models[h], f, sides[h] - 2, &targets[h], &has[h], &quality)) continue;
+        inputs[h].tracked = true;
+        inputs[h].targets = targets[h].data();
+        inputs[h].has_target = has[h].data();
+        continue;
+      }
       const leap::TrackedHand* th = nullptr;
       for (const leap::TrackedHand& c : f.hands)
         if ((c.right ? 0 : 1) == sides[h] && (!th || c.confidence > th->confidence)) th = &c;
       if (!th) continue;
-      retarget[h].targets(*th, &targets[h], &has[h]);
+      retarget[h]->targets(*th, &targets[h], &has[h]);
       inputs[h].tracked = true;
       inputs[h].targets = targets[h].data();
       inputs[h].has_target = has[h].data();
