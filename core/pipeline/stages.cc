@@ -71,6 +71,7 @@ void PipelineParams::validate() const {
   require(resolve_iterations >= 0 && resolve_iterations <= 100, "resolve_iterations must be in [0, 100]");
   require(finiteNonNeg(start_clearance), "start_clearance must be >= 0");
   require(std::isfinite(max_start_shift) && max_start_shift > 0.0, "max_start_shift must be > 0");
+  require(std::isfinite(stuck_rotation) && stuck_rotation >= 0.0, "stuck_rotation must be >= 0 (0 = off)");
 }
 
 PhysicsParams physicsParamsFor(double frame_rate, double physics_hz) {
@@ -94,6 +95,8 @@ HandSolver::HandSolver(const Scene& scene, const HandModel& model, const Pipelin
   stepper_ = std::make_unique<ClusterStepper>(model, params_.step);
   const int per = static_cast<int>(model.bodies.size()) * params_.contacts.per_pair * 4;
   blocked_.assign(model.bodies.size(), 0);
+  stuck_.assign(model.bodies.size(), 0);
+  rotation_cap_.assign(model.bodies.size(), std::numeric_limits<double>::infinity());
   body_toc_.assign(model.bodies.size(), 1.0);
   reclose_toc_.assign(model.bodies.size(), 1.0);
   clear_reach_.assign(model.bodies.size(), -1.0);
@@ -244,6 +247,7 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
     countSweep(s);
     if (s.started_inside) *started_inside = true;
     blocked_[b] = s.hit ? 1 : 0;
+    stuck_[b] = s.hit && s.toc < 1e-3 && !s.started_inside ? 1 : 0;
     body_toc_[b] = s.toc;
     if ((trace_ >= 2 && (s.toc < 1.0 || collision_.penetration(model_.bodies[b].shape, X1[b]) >
                                                collision_.penetration(model_.bodies[b].shape, X0[b]) + 1e-7)) ||
@@ -252,6 +256,17 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
                    s.started_inside, s.iterations, s.distance, (X1[b].p - X0[b].p).norm(),
                    collision_.penetration(model_.bodies[b].shape, X0[b]), collision_.penetration(model_.bodies[b].shape, X1[b]));
     toc = std::min(toc, s.toc);
+    if (trace_ >= 2 && s.hit && s.toc < 1e-3) {  // a hit at once: its contacts, and where its end pose is inside
+      const Vec3 dp = X1[b].p - X0[b].p;
+      for (const Contact& c : contacts_)
+        if (c.body == static_cast<int>(b))
+          emit(params_, "trace:   contact obj %d d %.3g n (%.3f %.3f %.3f) n.dp %.3g\n", c.object, c.distance, c.n_W.x(), c.n_W.y(), c.n_W.z(), c.n_W.dot(dp));
+      for (int o = 0; o < collision_.objectCount(); ++o) {
+        Vec3 n;
+        const double d1 = collision_.signedDistance(o, model_.bodies[b].shape, X1[b], 0.01, &n);
+        if (d1 < 0.01) emit(params_, "trace:   end obj %d d %.3g n (%.3f %.3f %.3f) n.dp %.3g dp (%.4f %.4f %.4f) rot %.3g\n", o, d1, n.x(), n.y(), n.z(), n.dot(dp), dp.x(), dp.y(), dp.z(), X1[b].q.angularDistance(X0[b].q));
+      }
+    }
   }
   return toc;
 }
@@ -375,6 +390,12 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     p.times.contacts_us += usSince(t0);
     si.contacts = contacts_.data();
     si.num_contacts = static_cast<int>(contacts_.size());
+    si.rotation_cap = nullptr;
+    if (params_.stuck_rotation > 0.0)
+      for (size_t b = 0; b < model_.bodies.size(); ++b) {
+        rotation_cap_[b] = stuck_[b] ? params_.stuck_rotation : std::numeric_limits<double>::infinity();
+        if (stuck_[b]) si.rotation_cap = rotation_cap_.data();
+      }
     const StepReport& sr = stepper_->step(si);
     ++p.substeps;
     if (trace_ >= 1)

@@ -75,6 +75,12 @@ struct PipelineParams {
   /// the contacts at the clipped pose are found and the rest of the motion towards the same
   /// targets is solved and swept again, at most this many rounds in all.
   int max_substeps = 2;
+  /// rad (0 = off): a body whose last sweep hit at once (TOC < 1e-3, from outside) may turn at
+  /// most this much in its next solved step (StepInput::rotation_cap): resting on a surface, a
+  /// larger turn about its origin swings its contact point into the surface and the whole round
+  /// is refused, round after round (seen: a pinky phalanx at a fandisk crease turned 0.55 rad per
+  /// step and held the hand still while its targets moved 15 cm on).
+  double stuck_rotation = 0.05;
 
   void validate() const;              ///< throws std::invalid_argument naming the field
 };
@@ -270,6 +276,8 @@ class HandSolver {
   std::vector<Contact> contacts_;
   std::vector<Contact> clip_contacts_;  // scratch: contacts at a clipped pose
   std::vector<unsigned char> blocked_;  // per body: its last sweep hit (gets shell contacts)
+  std::vector<unsigned char> stuck_;    // per body: its last sweep hit at once (TOC < 1e-3, from outside)
+  std::vector<double> rotation_cap_;    // per body: stuck_rotation where stuck_, else +inf
   std::vector<double> body_toc_;        // per body: TOC of the last sweep
   std::vector<Pose> X0_, X1_, X_clip_;
   std::vector<double> reclose_toc_;     // per body: TOC of the re-closing motion

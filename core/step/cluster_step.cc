@@ -244,6 +244,32 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
     report_.flags |= kFlagSolverInexact;
     ++counters_.inexact_solves;
   }
+  // Rotation caps on the solution (StepInput::rotation_cap): scale every coupling and solve
+  // again, warm-started from this solution's active set.
+  report_.rotation_scale = 1.0;
+  if (in.rotation_cap && report_.solve.status != SolveStatus::NumericalFailure) {
+    double scale = 1.0;
+    for (int b = 0; b < n; ++b) {
+      const double cap = in.rotation_cap[b];
+      if (!(cap > 0.0) || !std::isfinite(cap)) continue;
+      const double rot = sol_.z[static_cast<size_t>(b)].tail<3>().norm() * dt2;
+      if (rot > cap) scale = std::min(scale, cap / rot);
+    }
+    if (scale < 1.0) {
+      for (int b = 0; b < n; ++b) qp_.unconstrained(b) *= scale;
+      for (int r = 0; r < report_.rows; ++r)
+        warm_flags_[static_cast<size_t>(r)] = qp_.row(r).type == RowType::Inequality && sol_.lambda[static_cast<size_t>(r)] > 0.0;
+      report_.solve = params_.solver == SolverKind::Exact ? exact_.solve(qp_, sol_, warm_flags_.data())
+                                                          : pgs_.solve(qp_, sol_, warm_lambda_.data());
+      report_.rotation_scale = scale;
+      report_.motion_scale = std::min(report_.motion_scale, scale * report_.motion_scale);
+      report_.free_motion_scale *= scale;
+      if (report_.solve.status == SolveStatus::IterationLimit || report_.solve.status == SolveStatus::Stalled) {
+        report_.flags |= kFlagSolverInexact;
+        ++counters_.inexact_solves;
+      }
+    }
+  }
   if (report_.rejected_targets) report_.flags |= kFlagRejectedTarget;
   if (report_.rejected_contacts) report_.flags |= kFlagRejectedContact;
   counters_.rejected_targets += static_cast<std::uint64_t>(report_.rejected_targets);

@@ -100,6 +100,7 @@ struct StepReport {
   std::uint32_t flags = 0;
   int rejected_targets = 0, rejected_contacts = 0;
   int shortened = 0;                ///< halvings of a motion whose projection opened the joints (0: none)
+  double rotation_scale = 1.0;      ///< < 1: a capped body's solved rotation scaled the step (re-solved)
 };
 
 /// Counters over the stepper's lifetime (printed by services on exit).
@@ -113,6 +114,12 @@ struct StepInput {
   const unsigned char* has_target = nullptr;  ///< per body; nullptr = every body driven
   const Contact* contacts = nullptr;
   int num_contacts = 0;
+  /// Per body (nullptr = none): the largest rotation (rad) its solved step may make; a solution
+  /// that turns a capped body further is scaled down, the coupling of every body with it, and
+  /// solved again. For bodies resting on a surface whose last sweep hit at once: the contact rows
+  /// are linear, and a large turn about the body origin swings the contact point along an arc
+  /// into the surface (θ² r / 2 at the end), which the sweep rightly refuses.
+  const double* rotation_cap = nullptr;
 };
 
 class ClusterStepper {

@@ -67,6 +67,8 @@ const char* kUsage =
     "  --poses OUT.csv       write every God object's world pose every frame, and its target's\n"
     "                        (columns tpx..tqz, empty when the body has no target that frame)\n"
     "  --substeps N          solve -> sweep rounds per frame (default 2)\n"
+    "  --stuck-rotation RAD  a body whose last sweep hit at once may turn at most RAD in its next step\n"
+    "                        (default 0.05; 0 = no cap)\n"
     "  --contact-rotation R  most a body within 5 mm of a contact turns per frame, rad\n"
     "  --max-rotation R, --max-translation M  most any body turns (rad) / moves (m) per frame\n"
     "  --contacts-per-pair K contacts kept per (God object, scene object) (default 8)\n"
@@ -95,6 +97,7 @@ struct Args {
   long frames = -1;
   int physics_hz = 240;
   int substeps = PipelineParams{}.max_substeps;
+  double stuck_rotation = PipelineParams{}.stuck_rotation;
   double contact_rotation = PipelineParams{}.step.max_step_rotation_in_contact;
   double max_rotation = PipelineParams{}.step.max_step_rotation;
   int per_pair = PipelineParams{}.contacts.per_pair;
@@ -177,6 +180,7 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--physics-hz") a.physics_hz = static_cast<int>(parseCount(f, value(), 10, 100000));
     else if (f == "--quiet") a.quiet = true;
     else if (f == "--substeps") a.substeps = static_cast<int>(parseCount(f, value(), 1, 64));
+    else if (f == "--stuck-rotation") a.stuck_rotation = parseDouble(f, value(), 0.0, 10.0);
     else if (f == "--check") a.check = true;
     else fail("unknown argument '" + f + "' (see --help)");
   }
@@ -271,6 +275,7 @@ int main(int argc, char** argv) {
   params.step.pgs.sweeps = args.pgs_iterations;
   params.simulate = args.physics;
   params.max_substeps = args.substeps;
+  params.stuck_rotation = args.stuck_rotation;
   params.step.max_step_rotation_in_contact = args.contact_rotation;
   params.step.max_step_rotation = args.max_rotation;
   params.step.max_step_translation = args.max_translation;

@@ -11,10 +11,13 @@
 #include <vector>
 
 #include "geometry/bvh.h"
+#include "leap/leap_recording.h"
+#include "leap/retarget.h"
 #include "pipeline/pipeline.h"
 #include "pipeline/run_metrics.h"
 #include "scene/mesh_io.h"
 #include "scene/scene.h"
+#include "scene/scene_file.h"
 #include "probe_model.h"
 
 namespace godhand {
@@ -223,6 +226,64 @@ TEST(Plausibility, FingertipInACreaseDoesNotHoldTheRestOfTheHand) {
               "free twin max %.3g m\n", held, worst_free);
   EXPECT_GT(held, 0.003) << "the crease does not hold the tip: the test would show nothing";
   EXPECT_LT(worst_free, 1e-3);
+}
+
+// A phalanx resting on a crease must not hold the hand still while its targets move on. Real
+// data: the bundled two-hand recording over the default scene with the fandisk moved 12 cm
+// back, so that the right hand's fingers meet its -x side at a crease while the targets move
+// 15 cm on in +x and up. Without the rotation cap (stuck_rotation = 0) the pinky's solved step
+// turned 0.55 rad about its origin, swinging its contact point into the crease: every round
+// was refused at TOC 0 and the hand did not move for 30 frames. Oracle: the free twin (same
+// model and targets, empty scene) and the hand's own motion; penetration exact.
+TEST(Plausibility, APhalanxOnACreaseDoesNotHoldTheHandStill) {
+  const leap::Recording rec = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/confidence2-49fps.json");
+  const HandModel hand = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  Scene scene = loadScene(std::string(GODHAND_DEPLOY_DIR) + "/scenes/default.pbtxt");
+  bool moved = false;
+  for (SceneObject& o : scene.objects)
+    if (o.id == "fandisk") {
+      o.X_WO.p.y() += 0.12;
+      moved = true;
+    }
+  ASSERT_TRUE(moved);
+  leap::Retargeter rt(hand);
+  auto run = [&](double stuck_rotation, double* god_moved, double* twin_moved, double* pen) {
+    PipelineParams p;
+    p.step.dt = 1.0 / rec.meanFrameRate();
+    p.simulate = false;
+    p.stuck_rotation = stuck_rotation;
+    Pipeline pipe(scene, {&hand}, p);
+    Pipeline twin(Scene{}, {&hand}, p);
+    std::vector<Pose> targets, god_from, twin_from;
+    std::vector<unsigned char> has;
+    *pen = 0.0;
+    for (size_t k = 0; k <= 140 && k < rec.frames().size(); ++k) {
+      HandInput in;
+      for (const leap::TrackedHand& h : rec.frames()[k].hands)
+        if (h.right) {
+          rt.targets(h, &targets, &has);
+          in = HandInput{true, targets.data(), has.data()};
+        }
+      pipe.step({in});
+      twin.step({in});
+      *pen = std::max(*pen, pipe.penetration(0));
+      if (k == 116) {
+        god_from = pipe.poses(0);
+        twin_from = twin.poses(0);
+      }
+    }
+    *god_moved = (pipe.poses(0)[0].p - god_from[0].p).norm();
+    *twin_moved = (twin.poses(0)[0].p - twin_from[0].p).norm();
+  };
+  double god_on, twin_on, pen_on, god_off, twin_off, pen_off;
+  run(PipelineParams{}.stuck_rotation, &god_on, &twin_on, &pen_on);
+  run(0.0, &god_off, &twin_off, &pen_off);
+  std::printf("[figure] frames 116-140: the twin's palm moved %.3f m; the God palm %.4f m with the rotation cap, "
+              "%.4f m without; penetration %.2e / %.2e m\n", twin_on, god_on, god_off, pen_on, pen_off);
+  EXPECT_GT(twin_on, 0.1) << "the targets must move on, else the test shows nothing";
+  EXPECT_LT(god_off, 1e-3) << "without the cap the hand is held (the case this test is about)";
+  EXPECT_GT(god_on, 0.01) << "with the cap the hand moves on";
+  EXPECT_LE(pen_on, PipelineParams{}.step.rows.margin);
 }
 
 // The excess lag of METHOD.md §5 on an analytic case: a sphere whose target sinks d into a plane
