@@ -10,7 +10,8 @@ cases:
                                    replays in lock-step to the same accepted frames
   rejects                          godhand-ingest's bad configurations: one line, exit 2
   formats DATA_DIR                 lock-step runs through the lab with --check of a .dtrack file, the
-                                   Aria CSV sample and a synthetic script (detected by content)
+                                   Aria CSV sample, OpenXR and MediaPipe JSON Lines and a synthetic
+                                   script (detected by content)
   tool LAB DTRACK_FILE SENDER      a tool cluster driven by a DTrack 6d body (tracker_body) beside a
                                    right hand: in lock-step from the file and live over UDP with
                                    every fault; the tool is tracked, follows its body exactly when
@@ -208,6 +209,8 @@ def case_rejects():
 def case_formats(data):
     cases = [(os.path.join(data, "dtrack", "pinch.dtrack"), None, 307),
              (os.path.join(data, "aria", "pinch_head_v2.csv"), None, 8),
+             (os.path.join(data, "skeleton", "pinch_openxr.jsonl"), None, 80),
+             (os.path.join(data, "skeleton", "pinch_mediapipe.jsonl"), None, 80),
              (os.path.join(data, "synthetic", "press_slide_lift.txt"), os.path.join(data, "synthetic", "table.pbtxt"), 340)]
     for rec, scene, frames in cases:
         report = os.path.join(TMP, "fmt.json")
@@ -222,6 +225,12 @@ def case_formats(data):
         check(j.get("frames") == frames, f"{name}: {j.get('frames')} frames == {frames}")
         check(j.get("penetration_max_m", 1) <= 1e-4, f"{name}: penetration {j.get('penetration_max_m')} m")
         check(j.get("shm_segments_left", -1) == 0, f"{name}: no shared-memory segment left behind")
+        # The same file in-process (godhand-bench): the lock-step lab computes the same hands.
+        bench_json = os.path.join(TMP, "fmt-bench.json")
+        b = subprocess.run([os.path.join(BIN, "godhand-bench"), "--recording", rec, "--quiet", "--json", bench_json] +
+                           (["--scene", scene] if scene else []), capture_output=True, text=True, timeout=200)
+        h = json.load(open(bench_json)).get("result_hash") if b.returncode == 0 and os.path.exists(bench_json) else None
+        check(h is not None and h == j.get("result_hash"), f"{name}: result hash {j.get('result_hash')} == godhand-bench's {h}")
 
 
 def tool_checks(j, what, lossy):
