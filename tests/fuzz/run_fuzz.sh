@@ -7,7 +7,7 @@
 # Longer run (documented in bridges/README.md): run_fuzz.sh . /tmp/fuzz 600 dtrack
 set -u
 SRC=$(cd "$1" && pwd); OUT=$2; SECS=$3; shift 3
-TARGETS=("$@"); [ ${#TARGETS[@]} -eq 0 ] && TARGETS=(dtrack leap jsonl)
+TARGETS=("$@"); [ ${#TARGETS[@]} -eq 0 ] && TARGETS=(dtrack leap jsonl mesh)
 CXX=${FUZZ_CXX:-clang++}
 if ! command -v "$CXX" >/dev/null; then echo "SKIPPED: $CXX not installed"; exit 77; fi
 mkdir -p "$OUT"
@@ -18,6 +18,7 @@ FLAGS=(-std=c++17 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recov
 declare -A SOURCES=(
   [dtrack]="$SRC/tests/fuzz/fuzz_dtrack.cc $SRC/bridges/dtrack/dtrack.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
   [leap]="$SRC/tests/fuzz/fuzz_leap.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
+  [mesh]="$SRC/tests/fuzz/fuzz_mesh.cc $SRC/core/scene/mesh_io.cc $SRC/core/geometry/mesh.cc"
   [jsonl]="$SRC/tests/fuzz/fuzz_jsonl.cc $SRC/bridges/skeleton/jsonl.cc $SRC/bridges/skeleton/skeleton.cc $SRC/bridges/skeleton/aria.cc $SRC/bridges/synthetic/synthetic.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
 )
 # An object is stale when its source or any header it includes (clang's -MMD list) is newer: a
