@@ -317,14 +317,14 @@ double deepestOnSegment(const Shape& shape, const Vec3& a, const Vec3& b, double
 }  // namespace
 
 CollisionWorld::Overlap CollisionWorld::overlapIn(const geo::MeshBvh& mesh, const Pose& X_WO, const Shape& shape,
-                                                  const Pose& X_WB) const {
+                                                  const Pose& X_WB, int origin_known) const {
   Overlap best;
   const Pose X_OB = X_WO.inverse() * X_WB;
   const double r = geo::coreRadius(shape);
   const geo::Aabb& rb = mesh.bounds();
   auto in_box = [&](const Vec3& p) { return (p.array() >= rb.lo.array()).all() && (p.array() <= rb.hi.array()).all(); };
   geo::NearTriangle c;
-  const bool origin_inside = in_box(X_OB.p) && mesh.inside(X_OB.p);
+  const bool origin_inside = origin_known >= 0 ? origin_known == 1 : in_box(X_OB.p) && mesh.inside(X_OB.p);
   if (!origin_inside) {
     if (!mesh.closest(shape, X_OB, 0.0, &c)) return best;  // apart
     best.depth = std::max(0.0, -c.closest.distance);       // the rounded shell's overlap
@@ -427,13 +427,16 @@ double CollisionWorld::signedDistance(int object, const Shape& shape, const Pose
   geo::NearTriangle c;
   const geo::Aabb& gb = o.god->bounds();
   const bool in_box = (X_OB.p.array() >= gb.lo.array()).all() && (X_OB.p.array() <= gb.hi.array()).all();
-  if (!(in_box && o.god->inside(X_OB.p)) && !o.god->closest(shape, X_OB, range, &c)) return kInf;
-  if (!(in_box && o.god->inside(X_OB.p)) && c.closest.core_distance > 0.0) {  // apart, or shells overlap
-    if (n_W) *n_W = o.X_WO.q * c.closest.n;
-    return c.closest.distance;
+  const bool origin_inside = in_box && o.god->inside(X_OB.p);
+  if (!origin_inside) {
+    if (!o.god->closest(shape, X_OB, range, &c)) return kInf;
+    if (c.closest.core_distance > 0.0) {  // apart, or only the shells overlap
+      if (n_W) *n_W = o.X_WO.q * c.closest.n;
+      return c.closest.distance;
+    }
   }
   // The cores cross: the depth of the deepest witness (overlapIn), not the 0 of crossing cores.
-  const Overlap ov = overlapIn(*o.god, o.X_WO, shape, X_WB);
+  const Overlap ov = overlapIn(*o.god, o.X_WO, shape, X_WB, origin_inside ? 1 : 0);
   if (n_W) *n_W = ov.n_W;
   return -ov.depth;
 }

@@ -86,7 +86,10 @@ class CollisionWorld {
     double depth = 0.0;
     Vec3 n_W = Vec3::UnitZ();
   };
-  Overlap overlapIn(const geo::MeshBvh& mesh, const Pose& X_WO, const Shape& shape, const Pose& X_WB) const;
+  /// origin_known: 1 / 0 when the caller already knows whether the body's origin is inside the
+  /// mesh (its winding number), −1 to have it computed here.
+  Overlap overlapIn(const geo::MeshBvh& mesh, const Pose& X_WO, const Shape& shape, const Pose& X_WB,
+                    int origin_known = -1) const;
   /// Exact depth (≥ 0, m) of the shape in one object's reference mesh.
   double depthIn(const Object& o, const Shape& shape, const Pose& X_WB) const;
   /// A motion of a body that starts inside `o` ends, or passes a quarter point, deeper in it.

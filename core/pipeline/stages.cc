@@ -95,7 +95,6 @@ HandSolver::HandSolver(const Scene& scene, const HandModel& model, const Pipelin
   stepper_ = std::make_unique<ClusterStepper>(model, params_.step);
   const int per = static_cast<int>(model.bodies.size()) * params_.contacts.per_pair * 4;
   blocked_.assign(model.bodies.size(), 0);
-  stuck_.assign(model.bodies.size(), 0);
   rotation_cap_.assign(model.bodies.size(), std::numeric_limits<double>::infinity());
   body_toc_.assign(model.bodies.size(), 1.0);
   reclose_toc_.assign(model.bodies.size(), 1.0);
@@ -247,7 +246,8 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
     countSweep(s);
     if (s.started_inside) *started_inside = true;
     blocked_[b] = s.hit ? 1 : 0;
-    stuck_[b] = s.hit && s.toc < 1e-3 && !s.started_inside ? 1 : 0;
+    const bool stuck = params_.stuck_rotation > 0.0 && s.hit && s.toc < 1e-3 && !s.started_inside;
+    rotation_cap_[b] = stuck ? params_.stuck_rotation : std::numeric_limits<double>::infinity();
     body_toc_[b] = s.toc;
     if ((trace_ >= 2 && (s.toc < 1.0 || collision_.penetration(model_.bodies[b].shape, X1[b]) >
                                                collision_.penetration(model_.bodies[b].shape, X0[b]) + 1e-7)) ||
@@ -391,11 +391,8 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     si.contacts = contacts_.data();
     si.num_contacts = static_cast<int>(contacts_.size());
     si.rotation_cap = nullptr;
-    if (params_.stuck_rotation > 0.0)
-      for (size_t b = 0; b < model_.bodies.size(); ++b) {
-        rotation_cap_[b] = stuck_[b] ? params_.stuck_rotation : std::numeric_limits<double>::infinity();
-        if (stuck_[b]) si.rotation_cap = rotation_cap_.data();
-      }
+    for (double cap : rotation_cap_)
+      if (cap < std::numeric_limits<double>::infinity()) si.rotation_cap = rotation_cap_.data();
     const StepReport& sr = stepper_->step(si);
     ++p.substeps;
     if (trace_ >= 1)

@@ -276,8 +276,9 @@ class HandSolver {
   std::vector<Contact> contacts_;
   std::vector<Contact> clip_contacts_;  // scratch: contacts at a clipped pose
   std::vector<unsigned char> blocked_;  // per body: its last sweep hit (gets shell contacts)
-  std::vector<unsigned char> stuck_;    // per body: its last sweep hit at once (TOC < 1e-3, from outside)
-  std::vector<double> rotation_cap_;    // per body: stuck_rotation where stuck_, else +inf
+  // Per body: stuck_rotation where its last sweep hit at once (TOC < 1e-3, from outside), else
+  // +inf (StepInput::rotation_cap).
+  std::vector<double> rotation_cap_;
   std::vector<double> body_toc_;        // per body: TOC of the last sweep
   std::vector<Pose> X0_, X1_, X_clip_;
   std::vector<double> reclose_toc_;     // per body: TOC of the re-closing motion

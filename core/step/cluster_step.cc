@@ -246,7 +246,6 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
   }
   // Rotation caps on the solution (StepInput::rotation_cap): scale every coupling and solve
   // again, warm-started from this solution's active set.
-  report_.rotation_scale = 1.0;
   if (in.rotation_cap && report_.solve.status != SolveStatus::NumericalFailure) {
     double scale = 1.0;
     for (int b = 0; b < n; ++b) {
@@ -261,7 +260,6 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
         warm_flags_[static_cast<size_t>(r)] = qp_.row(r).type == RowType::Inequality && sol_.lambda[static_cast<size_t>(r)] > 0.0;
       report_.solve = params_.solver == SolverKind::Exact ? exact_.solve(qp_, sol_, warm_flags_.data())
                                                           : pgs_.solve(qp_, sol_, warm_lambda_.data());
-      report_.rotation_scale = scale;
       report_.motion_scale = std::min(report_.motion_scale, scale * report_.motion_scale);
       report_.free_motion_scale *= scale;
       if (report_.solve.status == SolveStatus::IterationLimit || report_.solve.status == SolveStatus::Stalled) {

@@ -95,12 +95,11 @@ struct StepReport {
   int projection_iterations = 0;
   JointErrors joint_errors;         ///< after the step
   double contact_violation = 0.0;   ///< m: contact points further in than allowed after the projection
-  double motion_scale = 1.0;        ///< < 1 when the motion clamp scaled the coupling (smallest)
+  double motion_scale = 1.0;        ///< < 1 when the motion clamp or a rotation cap scaled the coupling (smallest)
   double free_motion_scale = 1.0;   ///< the scale of the bodies away from contacts
   std::uint32_t flags = 0;
   int rejected_targets = 0, rejected_contacts = 0;
   int shortened = 0;                ///< halvings of a motion whose projection opened the joints (0: none)
-  double rotation_scale = 1.0;      ///< < 1: a capped body's solved rotation scaled the step (re-solved)
 };
 
 /// Counters over the stepper's lifetime (printed by services on exit).
