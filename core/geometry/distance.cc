@@ -206,9 +206,22 @@ double boxTriangleSq(const Vec3& e, const Vec3& a, const Vec3& b, const Vec3& c,
   }
   double best = std::numeric_limits<double>::infinity();
   Vec3 qc, qt;
+  // A feature pair is skipped where a lower bound of its distance already exceeds the best found
+  // (by a relative and an absolute round-off margin): every point of the triangle lies in its box
+  // [lo, hi], so the squared distance of a box vertex or edge to that box bounds the pair's from
+  // below. A skipped pair could not have replaced `best` (the test is strict), so the result is
+  // the same as without the skip, bit for bit; on a small triangle near one face of a palm it
+  // skips most of the 8 vertex and 36 edge pairs.
+  const Vec3 lo = a.cwiseMin(b).cwiseMin(c), hi = a.cwiseMax(b).cwiseMax(c);
+  auto gap = [&](int i, double x0, double x1) {  // distance of [x0, x1] to [lo_i, hi_i]
+    return std::max({0.0, lo[i] - x1, x0 - hi[i]});
+  };
+  auto skip = [&](double lower_sq) { return lower_sq > best * (1.0 + 1e-6) + 1e-16; };
   // Box vertices vs triangle.
   for (int k = 0; k < 8; ++k) {
     const Vec3 v((k & 1) ? e.x() : -e.x(), (k & 2) ? e.y() : -e.y(), (k & 4) ? e.z() : -e.z());
+    const double gx = gap(0, v.x(), v.x()), gy = gap(1, v.y(), v.y()), gz = gap(2, v.z(), v.z());
+    if (skip(gx * gx + gy * gy + gz * gz)) continue;
     const double d = pointTriangleSq(v, a, b, c, &qt);
     if (d < best) { best = d; *core = v; *tri = qt; }
   }
@@ -229,6 +242,8 @@ double boxTriangleSq(const Vec3& e, const Vec3& a, const Vec3& b, const Vec3& c,
       e0[w] = (k & 2) ? e[w] : -e[w];
       Vec3 e1 = e0;
       e1[axis] = e[axis];
+      const double ga = gap(axis, -e[axis], e[axis]), gu = gap(u, e0[u], e0[u]), gw = gap(w, e0[w], e0[w]);
+      if (skip(ga * ga + gu * gu + gw * gw)) continue;
       for (int i = 0; i < 3; ++i) {
         const double d = segmentSegmentSq(e0, e1, *v[i], *v[(i + 1) % 3], &qc, &qt);
         if (d < best) { best = d; *core = qc; *tri = qt; }

@@ -24,6 +24,7 @@ void ActiveSetSolver::reserve(int bodies, int rows) {
     L_.assign(static_cast<size_t>(capacity_) * static_cast<size_t>(capacity_), 0.0);
     passive_.reserve(static_cast<size_t>(capacity_));
     last_.assign(static_cast<size_t>(capacity_), 0);
+    band_.assign(static_cast<size_t>(capacity_), 0);
   }
   const size_t m = static_cast<size_t>(rows);
   growTo(position_, m);
@@ -54,7 +55,9 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
     x[j] /= col[j];
     ll += x[j] * x[j];
     const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
-    for (int i = j + 1; i <= end; ++i) x[i] -= col[i] * x[j];
+    const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
+    for (int i = j + 1; i <= gap_lo; ++i) x[i] -= col[i] * x[j];
+    for (int i = gap_hi; i <= end; ++i) x[i] -= col[i] * x[j];
   }
   const double eps = settings_.regularization * row.diag;
   double pivot2 = row.diag + eps - ll;
@@ -175,19 +178,23 @@ void ActiveSetSolver::solvePassive(const QpProblem& p) {
   const int n = static_cast<int>(passive_.size());
   const double* L = L_.data();
   const int* last = last_.data();
-  auto cholSolve = [&](double* x) {  // x ← (L Lᵀ)⁻¹ x
+  auto cholSolve = [&](double* x) {  // x ← (L Lᵀ)⁻¹ x, skipping each column's equality-block zeros
     for (int j = 0; j < n; ++j) {
       if (x[j] == 0.0) continue;
       const double* col = L + static_cast<size_t>(j) * cap;
       x[j] /= col[j];
       const int end = std::min(last[j], n - 1);
-      for (int i = j + 1; i <= end; ++i) x[i] -= col[i] * x[j];
+      const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
+      for (int i = j + 1; i <= gap_lo; ++i) x[i] -= col[i] * x[j];
+      for (int i = gap_hi; i <= end; ++i) x[i] -= col[i] * x[j];
     }
     for (int j = n - 1; j >= 0; --j) {
       const double* col = L + static_cast<size_t>(j) * cap;
       double acc = x[j];
       const int end = std::min(last[j], n - 1);
-      for (int i = j + 1; i <= end; ++i) acc -= col[i] * x[i];
+      const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
+      for (int i = j + 1; i <= gap_lo; ++i) acc -= col[i] * x[i];
+      for (int i = gap_hi; i <= end; ++i) acc -= col[i] * x[i];
       x[j] = acc / col[j];
     }
   };
@@ -218,8 +225,11 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
 
   // P starts with every equality row (multipliers free), then last step's active rows.
   bool equality_missing = false;  // an equality that cannot be factorised: not a converged solve
+  n_eq_ = 0;  // no gap while the equality block is built
   for (int k = 0; k < m; ++k)
     if (!isIneq(k) && !append(p, k)) equality_missing = equality_missing || p.row(k).c != 0.0 || p.row(k).diag != 0.0;
+  n_eq_ = static_cast<int>(passive_.size());
+  for (int j = 0; j < n_eq_; ++j) band_[static_cast<size_t>(j)] = std::min(last_[static_cast<size_t>(j)], n_eq_ - 1);
   if (warm_passive)
     for (int k = 0; k < m; ++k)
       if (isIneq(k) && warm_passive[k]) append(p, k);

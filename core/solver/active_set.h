@@ -66,6 +66,12 @@ class ActiveSetSolver {
   std::vector<double> L_;                  // column-major, capacity_ × capacity_
   std::vector<int> passive_;               // row indices in factor order
   std::vector<int> last_;                  // per factor column: last row that may be nonzero
+  // The equality rows are the first n_eq_ of the factor and never leave it. Column j < n_eq_ is
+  // zero in rows band_[j]+1 … n_eq_-1 (the equality block's own fill ends at band_[j]); rows
+  // from n_eq_ on are inequalities, which fill it down to last_[j]. The substitutions skip the
+  // zeros in between (with contacts they are most of a column).
+  int n_eq_ = 0;
+  std::vector<int> band_;
   std::vector<int> position_;              // row -> position in passive_ or -1
   std::vector<unsigned char> blocked_;     // rows that could not enter since the last change
   std::vector<double> s_, lambda_p_, tmp_, rhs_;

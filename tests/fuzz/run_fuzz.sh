@@ -7,18 +7,21 @@
 # Longer run (documented in bridges/README.md): run_fuzz.sh . /tmp/fuzz 600 dtrack
 set -u
 SRC=$(cd "$1" && pwd); OUT=$2; SECS=$3; shift 3
-TARGETS=("$@"); [ ${#TARGETS[@]} -eq 0 ] && TARGETS=(dtrack leap jsonl mesh)
+TARGETS=("$@"); [ ${#TARGETS[@]} -eq 0 ] && TARGETS=(dtrack leap jsonl mesh text)
 CXX=${FUZZ_CXX:-clang++}
 if ! command -v "$CXX" >/dev/null; then echo "SKIPPED: $CXX not installed"; exit 77; fi
 mkdir -p "$OUT"
 echo 'extern "C" int LLVMFuzzerTestOneInput(const unsigned char*, unsigned long) { return 0; }' > "$OUT/probe.cc"
 if ! "$CXX" -fsanitize=fuzzer "$OUT/probe.cc" -o "$OUT/probe" 2>/dev/null; then echo "SKIPPED: libFuzzer not available to $CXX"; exit 77; fi
+# The text target parses protobuf text: its messages are generated here with Debian's protoc.
+GEN="$OUT/gen"; mkdir -p "$GEN"
 FLAGS=(-std=c++17 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
-       -I"$SRC/bridges" -I"$SRC/core" -isystem /usr/include/eigen3 -DNDEBUG)
+       -I"$SRC/bridges" -I"$SRC/core" -I"$SRC/services" -I"$GEN" -isystem /usr/include/eigen3 -DNDEBUG)
 declare -A SOURCES=(
   [dtrack]="$SRC/tests/fuzz/fuzz_dtrack.cc $SRC/bridges/dtrack/dtrack.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
   [leap]="$SRC/tests/fuzz/fuzz_leap.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
   [mesh]="$SRC/tests/fuzz/fuzz_mesh.cc $SRC/core/scene/mesh_io.cc $SRC/core/geometry/mesh.cc"
+  [text]="$SRC/tests/fuzz/fuzz_text.cc $SRC/core/scene/scene_file.cc $SRC/core/scene/mesh_io.cc $SRC/core/geometry/mesh.cc $SRC/core/geometry/bvh.cc $SRC/core/geometry/distance.cc $SRC/core/model/hand_model.cc $SRC/core/math/pose.cc $SRC/services/common/lab_config.cc $GEN/hand_model.pb.cc $GEN/scene.pb.cc $GEN/lab.pb.cc"
   [jsonl]="$SRC/tests/fuzz/fuzz_jsonl.cc $SRC/bridges/skeleton/jsonl.cc $SRC/bridges/skeleton/skeleton.cc $SRC/bridges/skeleton/aria.cc $SRC/bridges/synthetic/synthetic.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
 )
 # An object is stale when its source or any header it includes (clang's -MMD list) is newer: a
@@ -36,6 +39,16 @@ status=0
 for t in "${TARGETS[@]}"; do
   [ -n "${SOURCES[$t]:-}" ] || { echo "unknown fuzz target $t"; exit 2; }
   echo "== building fuzz_$t"
+  LIBS=()
+  if [ "$t" = text ]; then
+    command -v protoc >/dev/null || { echo "SKIPPED: protoc not installed"; exit 77; }
+    for proto in hand_model scene lab; do
+      if [ ! -f "$GEN/$proto.pb.cc" ] || [ "$SRC/idl/$proto.proto" -nt "$GEN/$proto.pb.cc" ]; then
+        protoc -I"$SRC/idl" --cpp_out="$GEN" "$SRC/idl/$proto.proto" || { echo "FAILED: protoc $proto.proto"; exit 1; }
+      fi
+    done
+    LIBS=(-lprotobuf)
+  fi
   objs=()
   for src in ${SOURCES[$t]}; do  # each source compiled once for all targets
     obj="$OUT/obj/$(echo "${src#$SRC/}" | tr '/' '_').o"
@@ -45,7 +58,7 @@ for t in "${TARGETS[@]}"; do
     fi
     objs+=("$obj")
   done
-  if ! "$CXX" -fsanitize=fuzzer,address,undefined "${objs[@]}" -o "$OUT/fuzz_$t"; then echo "FAILED: link of fuzz_$t"; exit 1; fi
+  if ! "$CXX" -fsanitize=fuzzer,address,undefined "${objs[@]}" "${LIBS[@]}" -o "$OUT/fuzz_$t"; then echo "FAILED: link of fuzz_$t"; exit 1; fi
   corpus="$OUT/corpus_$t"; rm -rf "$corpus"; mkdir -p "$corpus"
   cp "$SRC/tests/fuzz/corpus/$t/"* "$corpus/"
   # Regression inputs (former crashes) must pass first.
