@@ -143,6 +143,24 @@ class Cache {
   std::map<std::string, std::shared_ptr<const MeshBvh>> primitives_;
 };
 
+/// The God-side mesh of an asset at a fidelity (shared between objects that ask the same).
+std::shared_ptr<const MeshBvh> godMesh(MeshAsset& a, pb::GodGeometry::Fidelity fidelity, int target_triangles) {
+  using GF = pb::GodGeometry;
+  const std::string gkey = std::to_string(static_cast<int>(fidelity)) + "|" + std::to_string(target_triangles);
+  auto& god = a.god[gkey];
+  if (!god) {
+    switch (fidelity) {
+      case GF::DECIMATED:
+        god = a.full->triangleCount() <= target_triangles ? a.full : makeBvh(decimate(a.full->mesh(), target_triangles));
+        break;
+      case GF::CONVEX_HULL: god = makeBvh(convexHull(a.base.vertices)); break;
+      case GF::PRIMITIVE: god = makeBvh(translate(boxMesh(0.5 * a.bounds.extent()), a.bounds.centre())); break;
+      default: god = a.full; break;
+    }
+  }
+  return god;
+}
+
 void addTotals(Scene* scene) {
   scene->god_triangles = scene->reference_triangles = 0;
   for (size_t i = 0; i < scene->objects.size(); ++i) {
@@ -269,21 +287,7 @@ Scene parseScene(const std::string& text, const std::string& source, const std::
           o.scale = a.scale;
           o.translation = a.translation;
           o.reference = a.full;
-          const std::string gkey = std::to_string(static_cast<int>(god_f)) + "|" + std::to_string(po.god().target_triangles());
-          auto& god = a.god[gkey];
-          if (!god) {
-            switch (god_f) {
-              case GF::DECIMATED:
-                god = a.full->triangleCount() <= static_cast<int>(po.god().target_triangles())
-                          ? a.full
-                          : makeBvh(decimate(a.full->mesh(), static_cast<int>(po.god().target_triangles())));
-                break;
-              case GF::CONVEX_HULL: god = makeBvh(convexHull(a.base.vertices)); break;
-              case GF::PRIMITIVE: god = makeBvh(translate(boxMesh(0.5 * a.bounds.extent()), a.bounds.centre())); break;
-              default: god = a.full; break;
-            }
-          }
-          o.god = god;
+          o.god = godMesh(a, god_f, static_cast<int>(po.god().target_triangles()));
           switch (phys_f) {
             case PF::TRIANGLE_MESH:
               o.physics.type = PhysicsShapeType::TriangleMesh;
@@ -403,6 +407,33 @@ MeshSpec parseMeshSpec(const std::string& arg) {
   return spec;
 }
 
+GodFidelity parseGodFidelity(const std::string& arg) {
+  GodFidelity g;
+  const std::string a = lower(arg);
+  if (a == "full") return g;
+  if (a == "hull") {
+    g.kind = GodFidelity::Kind::Hull;
+    return g;
+  }
+  const std::string prefix = "decimated:";
+  if (a.compare(0, prefix.size(), prefix) == 0) {
+    const std::string n = a.substr(prefix.size());
+    size_t used = 0;
+    long long v = 0;
+    try {
+      v = std::stoll(n, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (!n.empty() && used == n.size() && v >= 4 && v <= 100000000) {
+      g.kind = GodFidelity::Kind::Decimated;
+      g.target_triangles = static_cast<int>(v);
+      return g;
+    }
+  }
+  throw SceneError("God-side fidelity '" + arg + "': expected full, hull or decimated:N (N >= 4 triangles)");
+}
+
 Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre) {
   if (specs.empty()) throw SceneError("--mesh: no mesh given");
   if (!centre.allFinite()) throw SceneError("--mesh: the centre must be finite");
@@ -418,7 +449,16 @@ Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre) {
       const double extent = meshBounds(raw).extent().maxCoeff();
       if (!(extent > 0.0)) throw SceneError("--mesh " + spec.path + ": the mesh has zero extent");
       MeshAsset& a = cache.asset(spec.path, spec.size / extent, true, 0);
-      o.god = o.reference = a.full;
+      o.reference = a.full;
+      using GF = pb::GodGeometry;
+      switch (spec.god.kind) {
+        case GodFidelity::Kind::Decimated:
+          if (spec.god.target_triangles < 4) throw SceneError("--mesh " + spec.path + ": decimation needs >= 4 triangles");
+          o.god = godMesh(a, GF::DECIMATED, spec.god.target_triangles);
+          break;
+        case GodFidelity::Kind::Hull: o.god = godMesh(a, GF::CONVEX_HULL, 0); break;
+        case GodFidelity::Kind::Full: o.god = a.full; break;
+      }
       o.scale = a.scale;
       o.translation = a.translation;
       o.physics.type = PhysicsShapeType::TriangleMesh;

@@ -39,10 +39,22 @@ Scene loadScene(const std::string& path);
 /// Same, from text in memory; mesh paths are relative to `base_dir`; `source` names it in errors.
 Scene parseScene(const std::string& text, const std::string& source, const std::string& base_dir);
 
+/// What the God-object collision sees of a `--mesh` object (the scene file's `god` fidelity):
+/// the full mesh, a vertex-clustering decimation to about `target_triangles`, or the convex
+/// hull. Penetration is measured against the full mesh whatever is chosen.
+struct GodFidelity {
+  enum class Kind { Full, Decimated, Hull } kind = Kind::Full;
+  int target_triangles = 0;  ///< Decimated only, >= 4
+};
+
+/// "full", "hull" or "decimated:N" (N >= 4 triangles). Throws SceneError naming the argument.
+GodFidelity parseGodFidelity(const std::string& arg);
+
 /// One `--mesh FILE[:SIZE_M]` argument.
 struct MeshSpec {
   std::string path;
   double size = 0.15;  ///< largest bounding-box extent after scaling, m
+  GodFidelity god;     ///< what the God side collides with (default: the full mesh)
 };
 
 /// "path" or "path:0.2" (the part after the last ':' is the size in metres unless it ends in
@@ -51,7 +63,7 @@ MeshSpec parseMeshSpec(const std::string& arg);
 
 /// A scene of the given meshes only: each scaled uniformly so its largest extent is spec.size
 /// and its bounding-box centre placed at `centre` (object frame origin = that centre, X_WO =
-/// {centre, identity}, translation = −scale · bbox centre), static, god FULL, physics
+/// {centre, identity}, translation = −scale · bbox centre), static, god as spec.god, physics
 /// TRIANGLE_MESH, friction 0.5. Ids are the file stems (made unique with _2, _3, ...).
 /// Throws SceneError (with the mesh file's "FILE:LINE: reason").
 Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre);

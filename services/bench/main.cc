@@ -54,6 +54,9 @@ const char* kUsage =
     "  --mesh FILE[:SIZE_M]  ad-hoc static scene instead: each mesh (OBJ/STL) scaled uniformly so its\n"
     "                        largest extent is SIZE_M (default 0.15) and centred on the recording's\n"
     "                        mean palm position (repeatable)\n"
+    "  --god-fidelity F      what the God side collides with of each --mesh: full (default), hull, or\n"
+    "                        decimated:N (vertex clustering to about N triangles); penetration is\n"
+    "                        still measured against the full mesh\n"
     "  --hand-model FILE     right-hand model (default deploy/models/hand16_right.pbtxt)\n"
     "  --left-hand-model FILE  left-hand model (default deploy/models/hand16_left.pbtxt)\n"
     "  --tool MODEL:BODY     also a tool model (every body's tracker_segment \"tool\", e.g.\n"
@@ -107,6 +110,7 @@ struct Args {
   int sweep_iterations = PipelineParams{}.sweep.max_iterations;
   double contact_margin = PipelineParams{}.step.rows.margin;
   double push_out = PipelineParams{}.step.rows.contact_beta;
+  std::string god_fidelity;  // --god-fidelity (for --mesh scenes)
   bool physics = true, quiet = false, check = false;
 };
 
@@ -147,6 +151,7 @@ Args parseArgs(int argc, char** argv) {
     } else if (f == "--recording") a.recording = value();
     else if (f == "--scene") a.scene = value();
     else if (f == "--mesh") a.meshes.push_back(value());
+    else if (f == "--god-fidelity") a.god_fidelity = value();
     else if (f == "--hand-model") a.right_model = value();
     else if (f == "--left-hand-model") a.left_model = value();
     else if (f == "--tool") {
@@ -186,6 +191,8 @@ Args parseArgs(int argc, char** argv) {
   }
   if (a.recording.empty()) fail("--recording FILE is required (see --help)");
   if (!a.scene.empty() && !a.meshes.empty()) fail("--scene and --mesh exclude each other");
+  if (!a.god_fidelity.empty() && a.meshes.empty())
+    fail("--god-fidelity applies to --mesh scenes (a scene file sets each object's god fidelity)");
   return a;
 }
 
@@ -229,7 +236,11 @@ int main(int argc, char** argv) {
   try {
     if (!args.meshes.empty()) {
       std::vector<MeshSpec> specs;
-      for (const std::string& m : args.meshes) specs.push_back(parseMeshSpec(m));
+      const GodFidelity god = args.god_fidelity.empty() ? GodFidelity{} : parseGodFidelity(args.god_fidelity);
+      for (const std::string& m : args.meshes) {
+        specs.push_back(parseMeshSpec(m));
+        specs.back().god = god;
+      }
       scene = meshScene(specs, rec.mean_palm_W);
     } else if (args.scene == "none") {
       scene.name = "none";

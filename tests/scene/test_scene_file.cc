@@ -334,6 +334,61 @@ TEST(MeshScene, ScalesAndCentresExactly) {
   }
 }
 
+TEST(MeshScene, GodFidelityChangesTheGodSideOnly) {
+  EXPECT_EQ(parseGodFidelity("full").kind, GodFidelity::Kind::Full);
+  EXPECT_EQ(parseGodFidelity("HULL").kind, GodFidelity::Kind::Hull);
+  EXPECT_EQ(parseGodFidelity("decimated:500").kind, GodFidelity::Kind::Decimated);
+  EXPECT_EQ(parseGodFidelity("decimated:500").target_triangles, 500);
+  for (const char* bad : {"decimated:3", "decimated:", "decimated:5x", "decimated:-8", "half", ""}) {
+    try {
+      parseGodFidelity(bad);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find("expected full, hull or decimated:N"), std::string::npos) << e.what();
+      EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
+    }
+  }
+  const std::string fandisk = std::string(GODHAND_DEPLOY_DIR) + "/meshes/fandisk.obj";
+  const Vec3 centre(0.0, 0.0, 0.1);
+  MeshSpec full = parseMeshSpec(fandisk + ":0.2"), dec = full, hull = full;
+  dec.god = parseGodFidelity("decimated:1000");
+  hull.god = parseGodFidelity("hull");
+  const Scene s = meshScene({full, dec, hull}, centre);
+  ASSERT_EQ(s.objects.size(), 3u);
+  const geo::MeshBvh& ref = *s.objects[0].reference;
+  for (const SceneObject& o : s.objects) {
+    // The penetration figure's reference is the full mesh whatever the God side sees.
+    EXPECT_EQ(o.reference->triangleCount(), ref.triangleCount()) << o.id;
+    EXPECT_EQ(o.reference->mesh().vertices, ref.mesh().vertices) << o.id;
+    EXPECT_EQ(o.physics.type, PhysicsShapeType::TriangleMesh);
+  }
+  EXPECT_EQ(s.objects[0].god, s.objects[0].reference);
+  const geo::MeshBvh& d = *s.objects[1].god;
+  EXPECT_LT(d.triangleCount(), 1300);
+  EXPECT_GT(d.triangleCount(), 200);
+  // Vertex clustering averages vertices: the decimated mesh stays within the full mesh's box.
+  const geo::Aabb box = meshBounds(ref.mesh());
+  for (const Vec3& v : d.mesh().vertices)
+    EXPECT_TRUE((v.array() >= box.lo.array() - 1e-12).all() && (v.array() <= box.hi.array() + 1e-12).all());
+  // The hull encloses every vertex of the full mesh (brute force over its faces).
+  const geo::TriangleMesh& h = s.objects[2].god->mesh();
+  Vec3 c = Vec3::Zero();
+  for (const Vec3& v : h.vertices) c += v;
+  c /= static_cast<double>(h.vertices.size());
+  double worst = -1.0;
+  for (const auto& t : h.triangles) {
+    const Vec3 a = h.vertices[static_cast<size_t>(t[0])], b = h.vertices[static_cast<size_t>(t[1])], e = h.vertices[static_cast<size_t>(t[2])];
+    Vec3 n = (b - a).cross(e - a);
+    if (n.norm() < 1e-18) continue;
+    n.normalize();
+    if (n.dot(c - a) > 0.0) n = -n;
+    for (const Vec3& v : ref.mesh().vertices) worst = std::max(worst, n.dot(v - a));
+  }
+  EXPECT_LE(worst, 1e-9) << "a full-mesh vertex outside the hull";
+  std::printf("[figure] fandisk god side: full %d, decimated:1000 %d, hull %d triangles; max vertex beyond the hull %.2e m\n",
+              ref.triangleCount(), d.triangleCount(), s.objects[2].god->triangleCount(), worst);
+}
+
 TEST(MeshScene, ParseMeshSpec) {
   EXPECT_EQ(parseMeshSpec("a.obj").path, "a.obj");
   EXPECT_EQ(parseMeshSpec("a.obj").size, 0.15);
