@@ -48,6 +48,7 @@ FIGURES = [
     ("stuck_frames", ("plausibility", "all", "stuck_frames"), True),
     ("joint_gap_max_m", ("joint_gap_max_m",), True),
     ("kkt_residual_max", ("kkt_residual_max",), True),
+    ("god_triangles", ("triangles",), False),
 ]
 # The Pareto front is over these (all minimised): time, depth, lag.
 PARETO = ("step_median_us", "penetration_max_m", "excess_lag_p95_m")
