@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <numeric>
 #include <stdexcept>
@@ -657,6 +658,58 @@ double MeshBvh::windingNumber(const Vec3& p_M) const {
     }
   }
   return omega / (4.0 * kPi);
+}
+
+double surfaceDistanceBound(const TriangleMesh& from, const MeshBvh& to, double tolerance, double* measured) {
+  Shape point;
+  point.type = ShapeType::Sphere;
+  point.radius = 0.0;
+  double sampled = 0.0;
+  auto distanceOf = [&](const Vec3& x) {
+    NearTriangle c;
+    Pose X;
+    X.p = x;
+    const double d = to.closest(point, X, std::numeric_limits<double>::infinity(), &c) ? std::max(0.0, c.closest.distance)
+                                                                                         : std::numeric_limits<double>::infinity();
+    sampled = std::max(sampled, d);
+    return d;
+  };
+  constexpr int kMaxDepth = 7;
+  const double inv_sqrt3 = 1.0 / std::sqrt(3.0);
+  // Bound over triangle abc with its corners' distances: every point of it lies within its
+  // longest side / √3 of a corner; where that exceeds the tolerance, split at the midpoints.
+  std::function<double(const Vec3&, const Vec3&, const Vec3&, double, double, double, int)> triangle =
+      [&](const Vec3& a, const Vec3& b, const Vec3& c, double da, double db, double dc, int depth) {
+        const double longest = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+        const double base = std::max({da, db, dc}) + longest * inv_sqrt3;
+        // Refined until within the tolerance with a cover term of at most a tenth of it (so the
+        // bound is close to the true distance, not just under the tolerance).
+        if ((base <= tolerance && longest * inv_sqrt3 <= 0.1 * tolerance) || depth >= kMaxDepth) return base;
+        const Vec3 ab = 0.5 * (a + b), bc = 0.5 * (b + c), ca = 0.5 * (c + a);
+        const double dab = distanceOf(ab), dbc = distanceOf(bc), dca = distanceOf(ca);
+        double worst = 0.0;
+        for (const double w : {triangle(a, ab, ca, da, dab, dca, depth + 1), triangle(ab, b, bc, dab, db, dbc, depth + 1),
+                               triangle(ca, bc, c, dca, dbc, dc, depth + 1), triangle(ab, bc, ca, dab, dbc, dca, depth + 1)}) {
+          worst = std::max(worst, w);
+          if (worst > tolerance) break;
+        }
+        return worst;
+      };
+  std::vector<double> at_vertex(from.vertices.size(), -1.0);
+  double bound = 0.0;
+  for (const auto& t : from.triangles) {
+    double d[3];
+    for (int k = 0; k < 3; ++k) {
+      double& dv = at_vertex[static_cast<size_t>(t[k])];
+      if (dv < 0.0) dv = distanceOf(from.vertices[static_cast<size_t>(t[k])]);
+      d[k] = dv;
+    }
+    bound = std::max(bound, triangle(from.vertices[static_cast<size_t>(t[0])], from.vertices[static_cast<size_t>(t[1])],
+                                     from.vertices[static_cast<size_t>(t[2])], d[0], d[1], d[2], 0));
+    if (bound > tolerance) break;
+  }
+  if (measured) *measured = sampled;
+  return bound;
 }
 
 }  // namespace godhand::geo

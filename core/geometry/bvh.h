@@ -14,6 +14,7 @@
 #pragma once
 
 #include <array>
+#include <limits>
 #include <vector>
 
 #include "geometry/distance.h"
@@ -84,5 +85,16 @@ class MeshBvh {
   /// Per node: second-order far-field moment Σ_t (x_t − c) A_tᵀ (x_t centroid, A_t area vector).
   std::vector<Mat3> dipole_moment_;
 };
+
+/// An upper bound of the one-sided Hausdorff distance from the surface of `from` to the surface
+/// of `to` (the largest distance of a point of `from` to its nearest point of `to`), m, fine
+/// enough to answer whether it is within `tolerance`. Distance is 1-Lipschitz and every point of
+/// a triangle lies within its longest side / √3 of a corner (the equilateral triangle's centre is
+/// the worst case), so a triangle's bound is its corners' largest distance (measured exactly)
+/// plus that; where this exceeds the tolerance, or that cover term a tenth of it, the triangle
+/// is split at its edge midpoints, up to 7 levels. Returns as soon as some triangle's bound stays above the tolerance (a value above
+/// it). `measured` (optional) gets the largest distance at the points measured (a lower bound).
+double surfaceDistanceBound(const TriangleMesh& from, const MeshBvh& to,
+                            double tolerance = std::numeric_limits<double>::infinity(), double* measured = nullptr);
 
 }  // namespace godhand::geo

@@ -17,6 +17,16 @@ std::uint64_t contactKey(int object, int triangle, int body, int sample) {
   return rowKey(RowKind::Contact, id);
 }
 
+// The shape grown by `skin` (a sphere or capsule's radius; a box's half extents, which encloses
+// the box rounded by it): what the God side of an object with a skin collides.
+Shape grown(const Shape& shape, double skin) {
+  if (!(skin > 0.0)) return shape;
+  Shape g = shape;
+  if (g.type == ShapeType::Box) g.half_extents.array() += skin;
+  else g.radius += skin;
+  return g;
+}
+
 // Box of a sphere of radius r swept along the segment a–b.
 geo::Aabb sweptBox(const Vec3& a, const Vec3& b, double r) {
   geo::Aabb box;
@@ -33,6 +43,7 @@ CollisionWorld::CollisionWorld(const Scene& scene) {
     o.god = so.god.get();
     o.reference = so.reference ? so.reference.get() : so.god.get();
     o.dynamic = so.mass > 0.0;
+    o.skin = std::isfinite(so.god_skin) && so.god_skin > 0.0 ? so.god_skin : 0.0;
     objects_.push_back(o);
     setObjectPose(static_cast<int>(objects_.size()) - 1, so.X_WO);
   }
@@ -46,7 +57,7 @@ CollisionWorld::CollisionWorld(const Scene& scene) {
 void CollisionWorld::setObjectPose(int object, const Pose& X_WO) {
   Object& o = objects_[static_cast<size_t>(object)];
   o.X_WO = X_WO;
-  o.box_W = o.god ? geo::transformAabb(o.god->bounds(), X_WO) : geo::Aabb{};
+  o.box_W = o.god ? geo::transformAabb(o.god->bounds(), X_WO).inflated(o.skin) : geo::Aabb{};
   o.ref_box_W = o.reference ? geo::transformAabb(o.reference->bounds(), X_WO) : geo::Aabb{};
 }
 
@@ -57,40 +68,46 @@ bool CollisionWorld::insideGod(const Object& o, const Pose& X_OB) const {
   return o.god->inside(X_OB.p);
 }
 
-int CollisionWorld::contacts(const Shape& shape, const Pose& X_WB, int body, double reach,
+int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body, double reach,
                              const ContactParams& params, std::vector<Contact>* out) {
-  const geo::Aabb query_W = geo::shapeAabb(shape, X_WB).inflated(reach);
+  const geo::Aabb query_W = geo::shapeAabb(body_shape, X_WB).inflated(reach);
   const double cos_same = std::cos(params.normal_angle);
-  const double spread = std::max(params.spread, params.spread_fraction * geo::boundingRadius(shape));
+  const double spread = std::max(params.spread, params.spread_fraction * geo::boundingRadius(body_shape));
   const double spread2 = spread * spread;
-  // Sample shapes (body frame): the whole shape, plus the capsule's end spheres or the box's
-  // corners, so that a body lying along a surface gets contacts at both ends / all corners.
   Shape samples[9];
   Vec3 offsets[9];
-  int num_samples = 1;
-  samples[0] = shape;
-  offsets[0] = Vec3::Zero();
-  if (shape.type == ShapeType::Capsule) {
-    Shape end;
-    end.type = ShapeType::Sphere;
-    end.radius = shape.radius;
-    for (int s = -1; s <= 1; s += 2) {
-      samples[num_samples] = end;
-      offsets[num_samples++] = Vec3(0, 0, s * shape.half_length);
-    }
-  } else if (shape.type == ShapeType::Box) {
-    Shape corner;
-    corner.type = ShapeType::Sphere;
-    corner.radius = 0.0;
-    for (int c = 0; c < 8; ++c) {
-      samples[num_samples] = corner;
-      offsets[num_samples++] = Vec3((c & 1) ? 1 : -1, (c & 2) ? 1 : -1, (c & 4) ? 1 : -1).cwiseProduct(shape.half_extents);
-    }
-  }
+  int num_samples = 0;
+  double samples_skin = -1.0;
   int added = 0;
   for (size_t oi = 0; oi < objects_.size(); ++oi) {
     const Object& o = objects_[oi];
     if (!o.god || !o.box_W.overlaps(query_W)) continue;
+    const Shape shape = grown(body_shape, o.skin);
+    if (o.skin != samples_skin) {
+      // Sample shapes (body frame): the whole shape, plus the capsule's end spheres or the box's
+      // corners, so that a body lying along a surface gets contacts at both ends / all corners.
+      samples_skin = o.skin;
+      num_samples = 1;
+      samples[0] = shape;
+      offsets[0] = Vec3::Zero();
+      if (shape.type == ShapeType::Capsule) {
+        Shape end;
+        end.type = ShapeType::Sphere;
+        end.radius = shape.radius;
+        for (int s = -1; s <= 1; s += 2) {
+          samples[num_samples] = end;
+          offsets[num_samples++] = Vec3(0, 0, s * shape.half_length);
+        }
+      } else if (shape.type == ShapeType::Box) {
+        Shape corner;
+        corner.type = ShapeType::Sphere;
+        corner.radius = 0.0;
+        for (int c = 0; c < 8; ++c) {
+          samples[num_samples] = corner;
+          offsets[num_samples++] = Vec3((c & 1) ? 1 : -1, (c & 2) ? 1 : -1, (c & 4) ? 1 : -1).cwiseProduct(shape.half_extents);
+        }
+      }
+    }
     const Pose X_OB = o.X_WO.inverse() * X_WB;
     const bool inside = insideGod(o, X_OB);
     near_.clear();
@@ -182,7 +199,7 @@ geo::SweepResult CollisionWorld::sweep(const Shape& shape, const Pose& X_W0, con
     const Object& o = objects_[oi];
     if (!o.god || !o.box_W.overlaps(swept)) continue;
     const Pose X_WOinv = o.X_WO.inverse();
-    const geo::SweepResult r = geo::sweep(shape, X_WOinv * X_W0, X_WOinv * X_W1, *o.god, params);
+    const geo::SweepResult r = geo::sweep(grown(shape, o.skin), X_WOinv * X_W0, X_WOinv * X_W1, *o.god, params);
     total_iterations += r.iterations;
     if (r.started_inside) {
       // Inside: no time of contact to find (resolved by push-out contacts). It may recede or
@@ -419,9 +436,10 @@ double CollisionWorld::penetration(const Shape& shape, const Pose& X_WB, int* ob
   return deepest;
 }
 
-double CollisionWorld::signedDistance(int object, const Shape& shape, const Pose& X_WB, double range,
+double CollisionWorld::signedDistance(int object, const Shape& body_shape, const Pose& X_WB, double range,
                                       Vec3* n_W) const {
   const Object& o = objects_[static_cast<size_t>(object)];
+  const Shape shape = grown(body_shape, o.skin);
   if (!o.god || !o.box_W.overlaps(geo::shapeAabb(shape, X_WB).inflated(range))) return kInf;
   const Pose X_OB = o.X_WO.inverse() * X_WB;
   geo::NearTriangle c;
@@ -441,11 +459,12 @@ double CollisionWorld::signedDistance(int object, const Shape& shape, const Pose
   return -ov.depth;
 }
 
-double CollisionWorld::clearance(const Shape& shape, const Pose& X_WB, double range) const {
+double CollisionWorld::clearance(const Shape& body_shape, const Pose& X_WB, double range) const {
   double best = kInf;
-  const geo::Aabb box = geo::shapeAabb(shape, X_WB).inflated(range);
+  const geo::Aabb box = geo::shapeAabb(body_shape, X_WB).inflated(range);
   for (const Object& o : objects_) {
     if (!o.god || !o.box_W.overlaps(box)) continue;
+    const Shape shape = grown(body_shape, o.skin);
     const Pose X_OB = o.X_WO.inverse() * X_WB;
     const geo::Aabb& gb = o.god->bounds();
     const bool in_box = (X_OB.p.array() >= gb.lo.array()).all() && (X_OB.p.array() <= gb.hi.array()).all();

@@ -99,8 +99,9 @@ class CollisionWorld {
     const geo::MeshBvh* god = nullptr;
     const geo::MeshBvh* reference = nullptr;
     Pose X_WO;
-    geo::Aabb box_W;       ///< of the God mesh at X_WO
+    geo::Aabb box_W;       ///< of the God mesh at X_WO, grown by the skin
     geo::Aabb ref_box_W;   ///< of the reference mesh at X_WO
+    double skin = 0.0;     ///< SceneObject::god_skin: God-side queries use the shape grown by it
     bool dynamic = false;
   };
   bool insideGod(const Object& o, const Pose& X_OB) const;

@@ -38,6 +38,11 @@ struct SceneObject {
   /// The full-resolution geometry the penetration figure is measured against (METHOD.md §5);
   /// the same pointer as `god` when the God collision uses the full mesh.
   std::shared_ptr<const geo::MeshBvh> reference;
+  /// m: the God side takes every distance to this object from the God object grown by this much
+  /// (fidelity AUTO: the measured bound of the full surface's distance from `god`), else 0.
+  double god_skin = 0.0;
+  /// What the God side got and why, for reports ("AUTO 1 mm: decimated to 4,949 triangles, ...").
+  std::string god_note;
   PhysicsShape physics;
   std::string source;                ///< mesh file or primitive description, for messages
   double scale = 1.0;                ///< uniform scale applied to the mesh file

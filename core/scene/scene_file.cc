@@ -4,6 +4,7 @@
 #include <google/protobuf/text_format.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -86,6 +87,12 @@ struct MeshAsset {
   Vec3 translation = Vec3::Zero();
   std::optional<std::vector<Vec3>> hull_points;
   std::map<std::string, std::shared_ptr<const MeshBvh>> god;  ///< by fidelity key
+  struct AutoChoice {
+    std::shared_ptr<const MeshBvh> god;
+    double skin = 0.0;
+    std::string note;
+  };
+  std::map<std::string, AutoChoice> auto_choice;  ///< by tolerance
 };
 
 /// Everything loaded once per loadScene / meshScene call and shared between objects.
@@ -159,6 +166,64 @@ std::shared_ptr<const MeshBvh> godMesh(MeshAsset& a, pb::GodGeometry::Fidelity f
     }
   }
   return god;
+}
+
+std::string thousands(long long n) {
+  std::string d = std::to_string(n), out;
+  for (size_t i = 0; i < d.size(); ++i) {
+    if (i > 0 && (d.size() - i) % 3 == 0) out += ',';
+    out += d[i];
+  }
+  return out;
+}
+
+std::string mm(double m) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g mm", m * 1e3);
+  return buf;
+}
+
+/// Fidelity AUTO of a mesh asset: the coarsest of the hull and the decimations to 1/2, 1/4, ...
+/// whose distance bound from the full surface is within `tolerance` (m), with that bound as the
+/// God side's skin; none: the full mesh, skin 0.
+const MeshAsset::AutoChoice& autoGod(MeshAsset& a, double tolerance) {
+  const std::string key = bits(tolerance);
+  auto it = a.auto_choice.find(key);
+  if (it != a.auto_choice.end()) return it->second;
+  MeshAsset::AutoChoice choice;
+  const TriangleMesh& full = a.full->mesh();
+  const int n = full.triangleCount();
+  std::vector<int> targets;  // coarsest first
+  for (int t = n / 2; t >= 64; t /= 2) targets.insert(targets.begin(), t);
+  int tried = 0;
+  std::string finest_tried;
+  auto consider = [&](std::shared_ptr<const MeshBvh> god, const std::string& what) {
+    double measured = 0.0;
+    const double bound = geo::surfaceDistanceBound(full, *god, tolerance, &measured);
+    if (bound <= tolerance) {
+      choice.god = std::move(god);
+      choice.skin = bound;
+      choice.note = "AUTO " + mm(tolerance) + ": " + what + ", the full surface within " + mm(bound) +
+                    " of it (bound; " + mm(measured) + " at the samples); God objects grown by " + mm(bound);
+      return true;
+    }
+    ++tried;
+    finest_tried = what;
+    return false;
+  };
+  bool found = consider(makeBvh(convexHull(a.base.vertices)), "convex hull");
+  for (size_t i = 0; !found && i < targets.size(); ++i) {
+    std::shared_ptr<const MeshBvh> d = makeBvh(decimate(full, targets[i]));
+    if (d->triangleCount() >= n) break;
+    found = consider(d, "decimated to " + thousands(d->triangleCount()) + " of " + thousands(n) + " triangles");
+  }
+  if (!found) {
+    choice.god = a.full;
+    choice.skin = 0.0;
+    choice.note = "AUTO " + mm(tolerance) + ": the full mesh (" + thousands(n) + " triangles): no coarser level is within it (" +
+                  std::to_string(tried) + " tried, the finest " + finest_tried + ")";
+  }
+  return a.auto_choice.emplace(key, std::move(choice)).first->second;
 }
 
 void addTotals(Scene* scene) {
@@ -251,6 +316,11 @@ Scene parseScene(const std::string& text, const std::string& source, const std::
       bad("god", "DECIMATED needs target_triangles >= 4");
     if (god_f != GF::DECIMATED && po.god().target_triangles() != 0)
       bad("god", "target_triangles applies to DECIMATED only");
+    const bool tolerance_set = po.god().tolerance_mm() != 0.0;
+    if (god_f == GF::AUTO && tolerance_set && !(po.god().tolerance_mm() > 0.0 && po.god().tolerance_mm() <= 1000.0))
+      bad("god", "AUTO needs tolerance_mm in (0, 1000], got " + num(po.god().tolerance_mm()));
+    if (god_f != GF::AUTO && tolerance_set) bad("god", "tolerance_mm applies to AUTO only");
+    const double auto_tolerance = (tolerance_set ? po.god().tolerance_mm() : 3.0) * 1e-3;
 
     // Physics fidelity.
     using PF = pb::PhysicsGeometry;
@@ -287,7 +357,14 @@ Scene parseScene(const std::string& text, const std::string& source, const std::
           o.scale = a.scale;
           o.translation = a.translation;
           o.reference = a.full;
-          o.god = godMesh(a, god_f, static_cast<int>(po.god().target_triangles()));
+          if (god_f == GF::AUTO) {
+            const MeshAsset::AutoChoice& c = autoGod(a, auto_tolerance);
+            o.god = c.god;
+            o.god_skin = c.skin;
+            o.god_note = c.note;
+          } else {
+            o.god = godMesh(a, god_f, static_cast<int>(po.god().target_triangles()));
+          }
           switch (phys_f) {
             case PF::TRIANGLE_MESH:
               o.physics.type = PhysicsShapeType::TriangleMesh;
@@ -344,6 +421,7 @@ Scene parseScene(const std::string& text, const std::string& source, const std::
           make = [r, h] { return cylinderMesh(r, h); };
         }
         o.god = o.reference = cache.primitive(key, make);
+        if (god_f == GF::AUTO) o.god_note = "AUTO: a primitive's tessellation (it encloses the primitive: nothing coarser)";
         switch (phys_f) {
           case PF::PRIMITIVE:
             o.physics.type = po.has_box() ? PhysicsShapeType::Box : po.has_sphere() ? PhysicsShapeType::Sphere : PhysicsShapeType::Cylinder;
@@ -415,6 +493,22 @@ GodFidelity parseGodFidelity(const std::string& arg) {
     g.kind = GodFidelity::Kind::Hull;
     return g;
   }
+  const std::string auto_prefix = "auto:";
+  if (a.compare(0, auto_prefix.size(), auto_prefix) == 0) {
+    const std::string t = a.substr(auto_prefix.size());
+    size_t used = 0;
+    double v = 0.0;
+    try {
+      v = std::stod(t, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (!t.empty() && used == t.size() && std::isfinite(v) && v > 0.0 && v <= 1000.0) {
+      g.kind = GodFidelity::Kind::Auto;
+      g.tolerance_m = v * 1e-3;
+      return g;
+    }
+  }
   const std::string prefix = "decimated:";
   if (a.compare(0, prefix.size(), prefix) == 0) {
     const std::string n = a.substr(prefix.size());
@@ -431,7 +525,7 @@ GodFidelity parseGodFidelity(const std::string& arg) {
       return g;
     }
   }
-  throw SceneError("God-side fidelity '" + arg + "': expected full, hull or decimated:N (N >= 4 triangles)");
+  throw SceneError("God-side fidelity '" + arg + "': expected full, hull, decimated:N (N >= 4 triangles) or auto:MM (tolerance in mm, > 0)");
 }
 
 Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre) {
@@ -457,6 +551,14 @@ Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre) {
           o.god = godMesh(a, GF::DECIMATED, spec.god.target_triangles);
           break;
         case GodFidelity::Kind::Hull: o.god = godMesh(a, GF::CONVEX_HULL, 0); break;
+        case GodFidelity::Kind::Auto: {
+          if (!(spec.god.tolerance_m > 0.0)) throw SceneError("--mesh " + spec.path + ": AUTO needs a tolerance > 0");
+          const MeshAsset::AutoChoice& c = autoGod(a, spec.god.tolerance_m);
+          o.god = c.god;
+          o.god_skin = c.skin;
+          o.god_note = c.note;
+          break;
+        }
         case GodFidelity::Kind::Full: o.god = a.full; break;
       }
       o.scale = a.scale;

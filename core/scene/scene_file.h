@@ -40,14 +40,16 @@ Scene loadScene(const std::string& path);
 Scene parseScene(const std::string& text, const std::string& source, const std::string& base_dir);
 
 /// What the God-object collision sees of a `--mesh` object (the scene file's `god` fidelity):
-/// the full mesh, a vertex-clustering decimation to about `target_triangles`, or the convex
-/// hull. Penetration is measured against the full mesh whatever is chosen.
+/// the full mesh, a vertex-clustering decimation to about `target_triangles`, the convex hull, or
+/// AUTO (idl/scene.proto). Penetration is measured against the full mesh whatever is chosen.
 struct GodFidelity {
-  enum class Kind { Full, Decimated, Hull } kind = Kind::Full;
+  enum class Kind { Full, Decimated, Hull, Auto } kind = Kind::Full;
   int target_triangles = 0;  ///< Decimated only, >= 4
+  double tolerance_m = 0.0;  ///< Auto only, > 0 (the scene file's AUTO, tolerance_mm)
 };
 
-/// "full", "hull" or "decimated:N" (N >= 4 triangles). Throws SceneError naming the argument.
+/// "full", "hull", "decimated:N" (N >= 4 triangles) or "auto:MM" (AUTO with a tolerance in mm).
+/// Throws SceneError naming the argument.
 GodFidelity parseGodFidelity(const std::string& arg);
 
 /// One `--mesh FILE[:SIZE_M]` argument.

@@ -54,9 +54,11 @@ const char* kUsage =
     "  --mesh FILE[:SIZE_M]  ad-hoc static scene instead: each mesh (OBJ/STL) scaled uniformly so its\n"
     "                        largest extent is SIZE_M (default 0.15) and centred on the recording's\n"
     "                        mean palm position (repeatable)\n"
-    "  --god-fidelity F      what the God side collides with of each --mesh: full (default), hull, or\n"
-    "                        decimated:N (vertex clustering to about N triangles); penetration is\n"
-    "                        still measured against the full mesh\n"
+    "  --god-fidelity F      what the God side collides with of each --mesh: full (default), hull,\n"
+    "                        decimated:N (vertex clustering to about N triangles), or auto:MM (the\n"
+    "                        coarsest of those within MM mm of the full surface, the God objects grown\n"
+    "                        by that distance: scene AUTO); penetration is still measured against the\n"
+    "                        full mesh\n"
     "  --hand-model FILE     right-hand model (default deploy/models/hand16_right.pbtxt)\n"
     "  --left-hand-model FILE  left-hand model (default deploy/models/hand16_left.pbtxt)\n"
     "  --tool MODEL:BODY     also a tool model (every body's tracker_segment \"tool\", e.g.\n"
@@ -414,6 +416,8 @@ int main(int argc, char** argv) {
       std::printf("  mesh %s: scale %.6g, then translation (%.4f, %.4f, %.4f) m, placed at (%.4f, %.4f, %.4f) m\n",
                   o.source.c_str(), o.scale, o.translation.x(), o.translation.y(), o.translation.z(), o.X_WO.p.x(),
                   o.X_WO.p.y(), o.X_WO.p.z());
+  for (const SceneObject& o : scene.objects)
+    if (!o.god_note.empty()) std::printf("  God side of %s: %s\n", o.id.c_str(), o.god_note.c_str());
   std::printf("  step (the in-process frame, every hand and the scene): median %.1f us (%.0f Hz), p99 %.1f us, max %.1f us\n",
               median, hz, percentile(step_us, 0.99), percentile(step_us, 1.0));
   std::printf("  stages (median us): contacts %.1f, assembly %.1f, solve %.1f, integrate %.1f, ccd %.1f, merge %.1f, scene %.1f\n",
@@ -508,7 +512,11 @@ int main(int argc, char** argv) {
                          {"scale", o.scale},
                          {"rotation_wxyz", {o.X_WO.q.w(), o.X_WO.q.x(), o.X_WO.q.y(), o.X_WO.q.z()}},
                          {"translation_m", {t.x(), t.y(), t.z()}},
-                         {"dynamic", o.mass > 0.0}});
+                         {"dynamic", o.mass > 0.0},
+                         {"god_triangles", o.god ? o.god->triangleCount() : 0},
+                         {"reference_triangles", o.reference ? o.reference->triangleCount() : 0},
+                         {"god_skin_m", o.god_skin},
+                         {"god_note", o.god_note}});
     }
     j["objects"] = objects;
     if (!args.meshes.empty()) j["meshes"] = objects;

@@ -349,3 +349,57 @@ TEST(Bvh, FarFromTheOrigin) {
 
 }  // namespace
 }  // namespace godhand::geo
+
+namespace godhand {
+// surfaceDistanceBound: analytic offsets, and a brute-force oracle on dense samples.
+TEST(SurfaceDistanceBound, ParallelSquaresAndSpheres) {
+  // A unit square in z = 0 and the same square lifted by 0.01: every point is exactly 0.01 away.
+  geo::TriangleMesh lo, hi;
+  lo.vertices = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+  lo.triangles = {{0, 1, 2}, {0, 2, 3}};
+  hi = lo;
+  for (Vec3& v : hi.vertices) v.z() = 0.01;
+  const geo::MeshBvh hi_bvh(hi);
+  double measured = -1.0;
+  // No tolerance: the corners only, plus the longest edge / √3.
+  const double coarse_bound = geo::surfaceDistanceBound(lo, hi_bvh, std::numeric_limits<double>::infinity(), &measured);
+  EXPECT_NEAR(measured, 0.01, 1e-15);
+  EXPECT_NEAR(coarse_bound, 0.01 + std::sqrt(2.0) / std::sqrt(3.0), 1e-12);
+  // A tolerance of 0.02: refined until it holds, and never below the true 0.01.
+  const double bound = geo::surfaceDistanceBound(lo, hi_bvh, 0.02, &measured);
+  EXPECT_GE(bound, 0.01);
+  EXPECT_LE(bound, 0.02);
+  EXPECT_NEAR(measured, 0.01, 1e-15);
+  // Below the true distance it cannot hold: a value above the tolerance.
+  EXPECT_GT(geo::surfaceDistanceBound(lo, hi_bvh, 0.009), 0.009);
+
+  // A fine sphere against a coarse one inside it: the bound must cover every point of the fine
+  // surface (brute force: random points of every triangle against every coarse triangle).
+  const geo::TriangleMesh fine = godhand::sphereMesh(0.1, 3), coarse = godhand::sphereMesh(0.1, 1);
+  const geo::MeshBvh coarse_bvh(coarse);
+  const double b = geo::surfaceDistanceBound(fine, coarse_bvh, 0.008, &measured);
+  ASSERT_LE(b, 0.008);
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  double worst = 0.0;
+  for (const auto& t : fine.triangles) {
+    for (int k = 0; k < 6; ++k) {
+      double r1 = u(rng), r2 = u(rng);
+      if (r1 + r2 > 1.0) { r1 = 1.0 - r1; r2 = 1.0 - r2; }
+      const Vec3 p = fine.vertices[static_cast<size_t>(t[0])] +
+                     r1 * (fine.vertices[static_cast<size_t>(t[1])] - fine.vertices[static_cast<size_t>(t[0])]) +
+                     r2 * (fine.vertices[static_cast<size_t>(t[2])] - fine.vertices[static_cast<size_t>(t[0])]);
+      double d = std::numeric_limits<double>::infinity();
+      for (const auto& c : coarse.triangles)
+        d = std::min(d, geo::pointTriangleDistance(p, coarse.vertices[static_cast<size_t>(c[0])],
+                                                  coarse.vertices[static_cast<size_t>(c[1])], coarse.vertices[static_cast<size_t>(c[2])], nullptr));
+      worst = std::max(worst, d);
+    }
+  }
+  EXPECT_LE(worst, b);
+  EXPECT_LE(measured, b);
+  EXPECT_GT(measured, 0.5 * worst);  // the samples see most of it
+  std::printf("[figure] sphere level 3 vs level 1: bound %.3g mm, at the samples %.3g mm, brute force (random points) %.3g mm\n",
+              b * 1e3, measured * 1e3, worst * 1e3);
+}
+}  // namespace godhand

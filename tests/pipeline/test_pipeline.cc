@@ -349,6 +349,42 @@ TEST(Pipeline, PenetrationSeesAnObjectEdgeOrCornerInsideTheBody) {
   }
 }
 
+// An object with a God-side skin (fidelity AUTO: the full surface may lie that far outside its
+// God mesh): contacts, sweeps and signed distances are taken from the God object grown by the
+// skin, the penetration figure from the true shape against the reference. Oracle: a sphere over
+// the flat top of a box, analytic.
+TEST(Pipeline, ASkinKeepsTheGodSideThatFarOut) {
+  const double top = 0.03, skin = 0.004, r = 0.01;
+  SceneObject block = boxObject("block", Vec3(0.03, 0.03, 0.03), at(0, 0, 0), 0.0);
+  block.god_skin = skin;
+  const Scene scene = sceneOf({block});
+  CollisionWorld world(scene);
+  Shape ball;
+  ball.type = ShapeType::Sphere;
+  ball.radius = r;
+  const Pose X = at(0.001, -0.002, top + r + 0.01);  // 10 mm above the top
+  Vec3 n;
+  EXPECT_NEAR(world.signedDistance(0, ball, X, 0.1, &n), 0.01 - skin, 1e-12);
+  EXPECT_NEAR(n.z(), 1.0, 1e-12);
+  std::vector<Contact> contacts;
+  ContactParams cp;
+  world.contacts(ball, X, 0, 0.02, cp, &contacts);
+  ASSERT_FALSE(contacts.empty());
+  for (const Contact& c : contacts) EXPECT_NEAR(c.distance, 0.01 - skin, 1e-12);
+  EXPECT_TRUE(world.contacts(ball, X, 0, 0.005, cp, &contacts) == 0) << "6 mm out of reach 5 mm";
+  // Moving 20 mm straight down: stopped about `skin` above the true top (+ the stop distance).
+  const geo::SweepParams sp;
+  const Pose X1 = at(0.001, -0.002, top + r - 0.01);
+  const geo::SweepResult hit = world.sweep(ball, X, X1, sp);
+  ASSERT_TRUE(hit.hit);
+  const double z_stop = X.p.z() + hit.toc * (X1.p.z() - X.p.z());
+  EXPECT_GT(z_stop - r - top, skin);
+  EXPECT_LT(z_stop - r - top, skin + 2.0 * sp.stop_distance);
+  // Penetration is of the true ball against the reference: 0 at the stop, 3 mm when 3 mm in.
+  EXPECT_EQ(world.penetration(ball, at(0, 0, z_stop)), 0.0);
+  EXPECT_NEAR(world.penetration(ball, at(0, 0, top + r - 0.003)), 0.003, 1e-9);
+}
+
 // The scene pushes a dynamic object that overlaps a God object out of it (paper §6.2), however
 // they cross: here a cube's corner 2 mm into a palm's face (no corner of the palm in the cube).
 TEST(Pipeline, TheScenePushesAnObjectOutOfAPalmItsCornerIsIn) {

@@ -11,6 +11,7 @@
 
 #include <unistd.h>
 
+#include "geometry/bvh.h"
 #include "scene/mesh_io.h"
 #include "scene/scene_file.h"
 
@@ -339,12 +340,14 @@ TEST(MeshScene, GodFidelityChangesTheGodSideOnly) {
   EXPECT_EQ(parseGodFidelity("HULL").kind, GodFidelity::Kind::Hull);
   EXPECT_EQ(parseGodFidelity("decimated:500").kind, GodFidelity::Kind::Decimated);
   EXPECT_EQ(parseGodFidelity("decimated:500").target_triangles, 500);
-  for (const char* bad : {"decimated:3", "decimated:", "decimated:5x", "decimated:-8", "half", ""}) {
+  EXPECT_EQ(parseGodFidelity("auto:1.5").kind, GodFidelity::Kind::Auto);
+  EXPECT_DOUBLE_EQ(parseGodFidelity("auto:1.5").tolerance_m, 1.5e-3);
+  for (const char* bad : {"decimated:3", "decimated:", "decimated:5x", "decimated:-8", "half", "", "auto:", "auto:0", "auto:-1", "auto:nan"}) {
     try {
       parseGodFidelity(bad);
       ADD_FAILURE() << bad << " accepted";
     } catch (const SceneError& e) {
-      EXPECT_NE(std::string(e.what()).find("expected full, hull or decimated:N"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("expected full, hull, decimated:N"), std::string::npos) << e.what();
       EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
     }
   }
@@ -387,6 +390,47 @@ TEST(MeshScene, GodFidelityChangesTheGodSideOnly) {
   EXPECT_LE(worst, 1e-9) << "a full-mesh vertex outside the hull";
   std::printf("[figure] fandisk god side: full %d, decimated:1000 %d, hull %d triangles; max vertex beyond the hull %.2e m\n",
               ref.triangleCount(), d.triangleCount(), s.objects[2].god->triangleCount(), worst);
+}
+
+TEST(SceneFile, AutoFidelityPicksTheCoarsestWithinTheTolerance) {
+  TempDir tmp;
+  const std::string fandisk = std::string(GODHAND_DEPLOY_DIR) + "/meshes/fandisk.obj";
+  auto object = [&](const std::string& id, const std::string& god) {
+    return "objects { id: \"" + id + "\" mesh: \"" + fandisk + "\" size: 0.2 centre: true god { " + god + " } }\n";
+  };
+  const Scene s = loadScene(tmp.write("auto.pbtxt", object("full", "fidelity: FULL") + object("auto5", "fidelity: AUTO tolerance_mm: 5") +
+                                                        object("auto_tiny", "fidelity: AUTO tolerance_mm: 0.001") +
+                                                        "objects { id: \"ball\" sphere { radius: 0.05 } god { fidelity: AUTO } }\n"));
+  const SceneObject& full = byId(s, "full");
+  const SceneObject& a2 = byId(s, "auto5");
+  const SceneObject& tiny = byId(s, "auto_tiny");
+  EXPECT_EQ(full.god_skin, 0.0);
+  EXPECT_TRUE(full.god_note.empty());
+  // AUTO 5 mm: a coarser God side, its skin within the tolerance and covering the full surface
+  // (checked again here with the bound at a finer tolerance: never above the skin it chose).
+  EXPECT_LT(a2.god->triangleCount(), full.god->triangleCount());
+  EXPECT_GT(a2.god_skin, 0.0);
+  EXPECT_LE(a2.god_skin, 0.005);
+  EXPECT_EQ(a2.reference->triangleCount(), full.god->triangleCount());
+  double measured = 0.0;
+  geo::surfaceDistanceBound(a2.reference->mesh(), *a2.god, a2.god_skin, &measured);
+  EXPECT_LE(measured, a2.god_skin);
+  EXPECT_EQ(a2.god_note.rfind("AUTO 5 mm: ", 0), 0u) << a2.god_note;
+  EXPECT_NE(a2.god_note.find("God objects grown by"), std::string::npos) << a2.god_note;
+  // Nothing coarser within 1 µm: the full mesh, no skin, and the report says why.
+  EXPECT_EQ(tiny.god, tiny.reference);
+  EXPECT_EQ(tiny.god_skin, 0.0);
+  EXPECT_NE(tiny.god_note.find("no coarser level is within it"), std::string::npos) << tiny.god_note;
+  // A primitive's tessellation is what it gets.
+  EXPECT_EQ(byId(s, "ball").god_skin, 0.0);
+  EXPECT_NE(byId(s, "ball").god_note.find("primitive"), std::string::npos);
+  std::printf("[figure] fandisk 0.2 m, AUTO 5 mm: %d of %d triangles, skin %.3f mm (%.3f mm at the samples)\n",
+              a2.god->triangleCount(), full.god->triangleCount(), a2.god_skin * 1e3, measured * 1e3);
+  // Validation.
+  expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  god { fidelity: AUTO tolerance_mm: -1 }\n}\n",
+              "4: objects[0].god: ", "tolerance_mm in (0, 1000]");
+  expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  god { fidelity: FULL tolerance_mm: 1 }\n}\n",
+              "4: objects[0].god: ", "tolerance_mm applies to AUTO only");
 }
 
 TEST(MeshScene, ParseMeshSpec) {
