@@ -236,6 +236,19 @@ void addTotals(Scene* scene) {
   }
 }
 
+/// The whole of `t` as a finite number, or nothing (empty, trailing characters, NaN, Inf).
+std::optional<double> wholeNumber(const std::string& t) {
+  size_t used = 0;
+  double v = 0.0;
+  try {
+    v = std::stod(t, &used);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+  if (t.empty() || used != t.size() || !std::isfinite(v)) return std::nullopt;
+  return v;
+}
+
 std::string lower(std::string s) {
   for (char& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   return s;
@@ -469,14 +482,8 @@ MeshSpec parseMeshSpec(const std::string& arg) {
                          (lt.size() >= 4 && (lt.compare(lt.size() - 4, 4, ".obj") == 0 || lt.compare(lt.size() - 4, 4, ".stl") == 0));
     if (!is_path) {
       spec.path = arg.substr(0, colon);
-      size_t used = 0;
-      double size = 0.0;
-      try {
-        size = std::stod(tail, &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (tail.empty() || used != tail.size() || !finite(size) || !(size > 0.0) || size > 1e3)
+      const double size = wholeNumber(tail).value_or(0.0);
+      if (!(size > 0.0) || size > 1e3)
         throw SceneError("--mesh " + arg + ": size '" + tail + "' must be a positive number of metres (FILE[:SIZE_M], e.g. bunny.obj:0.15)");
       spec.size = size;
     }
@@ -493,37 +500,18 @@ GodFidelity parseGodFidelity(const std::string& arg) {
     g.kind = GodFidelity::Kind::Hull;
     return g;
   }
-  const std::string auto_prefix = "auto:";
-  if (a.compare(0, auto_prefix.size(), auto_prefix) == 0) {
-    const std::string t = a.substr(auto_prefix.size());
-    size_t used = 0;
-    double v = 0.0;
-    try {
-      v = std::stod(t, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (!t.empty() && used == t.size() && std::isfinite(v) && v > 0.0 && v <= 1000.0) {
-      g.kind = GodFidelity::Kind::Auto;
-      g.tolerance_m = v * 1e-3;
-      return g;
-    }
+  auto after = [&](const std::string& prefix) {
+    return a.compare(0, prefix.size(), prefix) == 0 ? wholeNumber(a.substr(prefix.size())) : std::nullopt;
+  };
+  if (const std::optional<double> mm = after("auto:"); mm && *mm > 0.0 && *mm <= 1000.0) {
+    g.kind = GodFidelity::Kind::Auto;
+    g.tolerance_m = *mm * 1e-3;
+    return g;
   }
-  const std::string prefix = "decimated:";
-  if (a.compare(0, prefix.size(), prefix) == 0) {
-    const std::string n = a.substr(prefix.size());
-    size_t used = 0;
-    long long v = 0;
-    try {
-      v = std::stoll(n, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (!n.empty() && used == n.size() && v >= 4 && v <= 100000000) {
-      g.kind = GodFidelity::Kind::Decimated;
-      g.target_triangles = static_cast<int>(v);
-      return g;
-    }
+  if (const std::optional<double> n = after("decimated:"); n && *n >= 4.0 && *n <= 1e8 && *n == std::floor(*n)) {
+    g.kind = GodFidelity::Kind::Decimated;
+    g.target_triangles = static_cast<int>(*n);
+    return g;
   }
   throw SceneError("God-side fidelity '" + arg + "': expected full, hull, decimated:N (N >= 4 triangles) or auto:MM (tolerance in mm, > 0)");
 }

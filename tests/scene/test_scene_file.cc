@@ -342,7 +342,7 @@ TEST(MeshScene, GodFidelityChangesTheGodSideOnly) {
   EXPECT_EQ(parseGodFidelity("decimated:500").target_triangles, 500);
   EXPECT_EQ(parseGodFidelity("auto:1.5").kind, GodFidelity::Kind::Auto);
   EXPECT_DOUBLE_EQ(parseGodFidelity("auto:1.5").tolerance_m, 1.5e-3);
-  for (const char* bad : {"decimated:3", "decimated:", "decimated:5x", "decimated:-8", "half", "", "auto:", "auto:0", "auto:-1", "auto:nan"}) {
+  for (const char* bad : {"decimated:3", "decimated:", "decimated:5x", "decimated:-8", "decimated:5.5", "half", "", "auto:", "auto:0", "auto:-1", "auto:nan"}) {
     try {
       parseGodFidelity(bad);
       ADD_FAILURE() << bad << " accepted";
