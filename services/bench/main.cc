@@ -18,8 +18,11 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include <nlohmann/json.hpp>
 
+#include "common/sweep_spec.h"
 #include "runtime/trace_env.h"
 #include "leap/leap_recording.h"
 #include "source/recording.h"
@@ -42,6 +45,8 @@ const char* kUsage =
     "                     [--hand-model FILE] [--left-hand-model FILE] [--tool MODEL:BODY] [--solver exact|pgs]\n"
     "                     [--pgs-iterations N] [--substeps N] [--frames N] [--no-physics] [--json OUT]\n"
     "                     [--poses OUT.csv] [--tracker-pose POSE] [--hand-sides MAP] [--quiet] [--check]\n"
+    "       godhand-bench --sweep GRID.pbtxt --recording FILE [--scene FILE|none | --mesh FILE[:SIZE_M] ...]\n"
+    "                     [--frames N] [--json OUT] [--plot OUT.png|svg] [--target BOUNDS]\n"
     "\n"
     "Runs the God-object method in one process, in lock-step over every frame of a tracker\n"
     "recording, against a scene, and reports what it measured: penetration, joint gap, and beside\n"
@@ -86,6 +91,11 @@ const char* kUsage =
     "  --tracking-volume M   hands with a coordinate beyond M m of the tracker are dropped, counted (default 50)\n"
     "  --max-speed MPS       palm jumps faster than this are dropped, counted (default 30 m/s)\n"
     "  --quiet               no progress lines\n"
+    "  --sweep GRID.pbtxt    the speed/accuracy sweep (services/bench/sweep.py): every point of the grid\n"
+    "                        (idl/sweep.proto; deploy/sweeps/default.pbtxt) run on the recording and\n"
+    "                        scene, figures per point, the Pareto front; --json writes points and\n"
+    "                        pareto, --plot draws them (matplotlib), --target \"penetration_max_m<=1e-4,\n"
+    "                        excess_lag_p95_m<=3e-3\" names the fastest point within the bounds\n"
     "  --check               exit 1 unless penetration <= margin, joint gap <= 1e-6 m, no solver failures,\n"
     "                        every hand started and was not held in most of its frames, no stuck frame\n"
     "                        and frozen windows <= 5 % of the moving windows\n"
@@ -210,6 +220,31 @@ const char* shapeName(ShapeType t) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // The speed/accuracy sweep and its grid (services/bench/sweep.py measures; the grid's text
+  // format is read here, the one parser of idl/sweep.proto).
+  const std::vector<std::string> all_args(argv + 1, argv + argc);
+  if (argc == 3 && all_args[0] == "--print-sweep-grid") {
+    try {
+      std::cout << sweepSpecJson(loadSweepSpec(all_args[1])) << "\n";
+      return 0;
+    } catch (const SweepSpecError& e) { fail(e.what()); }
+  }
+  if (std::find(all_args.begin(), all_args.end(), "--sweep") != all_args.end() &&
+      std::find(all_args.begin(), all_args.end(), "--help") == all_args.end()) {
+    std::vector<std::string> cmd;
+    try {
+      cmd = sweepCommand(all_args, GODHAND_SWEEP_SCRIPT, "/proc/self/exe");
+      loadSweepSpec(cmd.back());  // a bad grid: its one line here, before anything runs
+      char self[4096];
+      const ssize_t n = ::readlink("/proc/self/exe", self, sizeof self - 1);
+      if (n > 0) cmd[3] = std::string(self, static_cast<size_t>(n));
+    } catch (const SweepSpecError& e) { fail(e.what()); }
+    std::vector<char*> c_args;
+    for (std::string& a : cmd) c_args.push_back(a.data());
+    c_args.push_back(nullptr);
+    ::execvp(c_args[0], c_args.data());
+    fail(std::string("--sweep: cannot run python3: ") + std::strerror(errno));
+  }
   const Args args = parseArgs(argc, argv);
 
   // Inputs: recording, models, scene. Any problem: one line, exit 2.

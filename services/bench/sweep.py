@@ -6,13 +6,15 @@ p99) and what it buys (penetration against the full meshes, excess lag, frozen w
 gap, KKT residual); marks the Pareto front (no other point is at least as fast, as deep and as
 laggy and better in one); with --target, names the fastest point within the stated bounds.
 
-usage: sweep.py --recording FILE [--mesh FILE[:SIZE] ... | --scene FILE|none] [--grid GRID.json]
+usage: godhand-bench --sweep GRID.pbtxt --recording FILE [--mesh FILE[:SIZE] ... | --scene FILE|none] ...
+       sweep.py --recording FILE [--mesh FILE[:SIZE] ... | --scene FILE|none] [--grid GRID.pbtxt|GRID.json]
                 [--bench build/bin/godhand-bench] [--frames N] [--json OUT] [--plot OUT.png]
                 [--target "penetration_max_m<=1e-4,excess_lag_p95_m<=3e-3"]
 
-GRID.json: {"mode": "each" | "product", "knobs": {"--substeps": ["1", "2"], ...}}. "each" varies
-one knob at a time from godhand-bench's defaults (the first point is the defaults); "product"
-runs every combination. The shipped grid is deploy/sweeps/default.json. Each value is passed as
+GRID.pbtxt (idl/sweep.proto): `mode: EACH | PRODUCT` and `knobs { option: "--substeps" values: "1"
+values: "3" }`; or GRID.json: {"mode": "each" | "product", "knobs": {"--substeps": ["1", "2"], ...}}.
+"each" varies one knob at a time from godhand-bench's defaults (the first point is the defaults);
+"product" runs every combination. The shipped grid is deploy/sweeps/default.pbtxt. Each value is passed as
 godhand-bench's option value; a value with spaces is split into several arguments
 ("pgs --pgs-iterations 100" under "--solver"; the 6-body hands under "--hand-model" also set
 --left-hand-model; paths are relative to the current directory, the project root). Points of
@@ -157,7 +159,8 @@ def main():
     ap.add_argument("--recording", required=True, help="tracker recording (any format godhand-bench reads)")
     ap.add_argument("--mesh", action="append", default=[], help="FILE[:SIZE_M], as godhand-bench --mesh (repeatable)")
     ap.add_argument("--scene", help="scene file or none, as godhand-bench --scene")
-    ap.add_argument("--grid", default=os.path.join(ROOT, "deploy", "sweeps", "default.json"), help="the grid (JSON; default deploy/sweeps/default.json)")
+    ap.add_argument("--grid", default=os.path.join(ROOT, "deploy", "sweeps", "default.pbtxt"),
+                    help="the grid: protobuf text (idl/sweep.proto, read through godhand-bench) or JSON; default deploy/sweeps/default.pbtxt")
     ap.add_argument("--bench", default=os.path.join(ROOT, "build", "bin", "godhand-bench"), help="godhand-bench to run")
     ap.add_argument("--frames", type=int, default=0, help="only the first N frames of the recording")
     ap.add_argument("--json", help="write the points and the Pareto front here")
@@ -171,10 +174,17 @@ def main():
     if a.frames < 0:
         fail("--frames must be >= 0")
     bounds = parse_target(a.target) if a.target else None
-    try:
-        grid = json.load(open(a.grid))
-    except (OSError, ValueError) as e:
-        fail(f"{a.grid}: {e}".replace("\n", " "))
+    if a.grid.endswith(".pbtxt"):
+        # The grid's text format (idl/sweep.proto) is parsed and checked by godhand-bench itself.
+        r = subprocess.run([a.bench, "--print-sweep-grid", a.grid], capture_output=True, text=True)
+        if r.returncode != 0:
+            fail((r.stderr.strip().splitlines() or [f"godhand-bench --print-sweep-grid exit {r.returncode}"])[-1])
+        grid = json.loads(r.stdout)
+    else:
+        try:
+            grid = json.load(open(a.grid))
+        except (OSError, ValueError) as e:
+            fail(f"{a.grid}: {e}".replace("\n", " "))
     pts = points_of(grid)
     if not a.mesh:  # --god-fidelity is a --mesh knob (a scene file sets each object's fidelity)
         kept = [k for k in pts if "--god-fidelity" not in k]
