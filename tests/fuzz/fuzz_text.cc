@@ -1,6 +1,6 @@
 // libFuzzer target: the protobuf text files a lab writes by hand (scene, lab configuration, hand
-// model), through the parsers and validation the services use. The first input byte picks the
-// file kind (0: scene, 1: lab, 2: hand model). A bad file is one error line (SceneError, MeshError,
+// model, sweep grid), through the parsers and validation the services use. The first input byte
+// picks the file kind (0: scene, 1: lab, 2: hand model, 3: sweep grid). A bad file is one error line (SceneError, MeshError, SweepSpecError,
 // LabError or ModelError), never a crash, a hang or a half-checked result: a parsed
 // scene has finite placements, unit orientations and masses >= 0; a parsed model has finite rest
 // poses.
@@ -13,6 +13,7 @@
 #include <string>
 
 #include "common/lab_config.h"
+#include "common/sweep_spec.h"
 #include "model/hand_model.h"
 #include "scene/mesh_io.h"
 #include "scene/scene_file.h"
@@ -42,10 +43,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   if (size == 0) return 0;
   const std::string text(reinterpret_cast<const char*>(data + 1), size - 1);
   try {
-    switch (data[0] % 3) {
+    switch (data[0] % 4) {
       case 0: checkScene(godhand::parseScene(text, "fuzz.pbtxt", "/nonexistent-godhand-fuzz")); break;
       case 1: godhand::parseLab(text, "fuzz.pbtxt", "/nonexistent-godhand-fuzz"); break;
-      default: checkModel(godhand::HandModel::fromText(text, "fuzz.pbtxt")); break;
+      case 2: checkModel(godhand::HandModel::fromText(text, "fuzz.pbtxt")); break;
+      default: godhand::sweepSpecJson(godhand::parseSweepSpec(text, "fuzz.pbtxt")); break;
     }
   } catch (const godhand::SceneError& e) {
     oneLine(e);
@@ -54,6 +56,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   } catch (const godhand::LabError& e) {
     oneLine(e);
   } catch (const godhand::ModelError& e) {
+    oneLine(e);
+  } catch (const godhand::SweepSpecError& e) {
     oneLine(e);
   }  // anything else (std::out_of_range from a number conversion, bad_alloc) escapes: a finding
   return 0;
