@@ -1,10 +1,10 @@
 // libFuzzer target: the protobuf text files a lab writes by hand (scene, lab configuration, hand
 // model, sweep grid), through the parsers and validation the services use. The first input byte
-// picks the file kind (0: scene, 1: lab, 2: hand model, 3: sweep grid). A bad file is one error line (SceneError, MeshError, SweepSpecError,
-// LabError or ModelError), never a crash, a hang or a half-checked result: a parsed
-// scene has finite placements, unit orientations and masses >= 0; a parsed model has finite rest
-// poses.
-// Mesh files a scene names are looked up in a directory that does not exist (a clear error).
+// picks the file kind (0: scene, 1: lab, 2: hand model, 3: sweep grid). A bad file is one error
+// line (SceneError, MeshError, SweepSpecError, LabError or ModelError), never a crash, a hang or
+// a half-checked result: a parsed scene has finite placements, unit orientations and masses
+// >= 0; a parsed model has finite rest poses. Mesh files a scene names are looked up in a
+// directory that does not exist (a clear error).
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
