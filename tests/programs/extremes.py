@@ -6,7 +6,12 @@ lab feeds it. Every case must end with exit 0, every God-object pose finite (all
 solver failure, the injected bad samples counted, the hand started. Prints one table row per
 case ("extreme:" lines; the README's table).
 
-usage: extremes.py BENCH_BIN"""
+With --distributed LAUNCH_BIN DOMAIN, the cases that need no godhand-bench-only option also run
+through every service over Fast DDS in lock-step (godhand-launch --lockstep --check on its own
+domain): each must exit 0 with the in-process result_hash, penetration within the margin and no
+shared-memory segment left ("extreme-distributed:" lines).
+
+usage: extremes.py BENCH_BIN [--distributed LAUNCH_BIN DOMAIN]"""
 import csv
 import json
 import math
@@ -18,6 +23,10 @@ import tempfile
 import time
 
 BENCH = sys.argv[1]
+WIRE_MAX_OBJECTS = 100  # idl/godhand.idl: SceneDescription and SceneState carry sequence<..., 100> objects
+LAUNCH, DOMAIN = (sys.argv[3], sys.argv[4]) if len(sys.argv) == 5 and sys.argv[2] == "--distributed" else (None, None)
+if len(sys.argv) not in (2, 5) or (len(sys.argv) == 5 and not LAUNCH):
+    sys.exit("usage: extremes.py BENCH_BIN [--distributed LAUNCH_BIN DOMAIN]")
 TMP = tempfile.mkdtemp(prefix="godhand-extremes-")
 failures = []
 
@@ -117,8 +126,10 @@ def finite_poses(path):
     return n, bad
 
 
-rows = []
+rows, dist_rows = [], []
 for name, rec, scn, extra, counted in CASES:
+    if LAUNCH and extra:
+        continue  # a godhand-bench-only option: in-process only
     out, poses = os.path.join(TMP, "r.json"), os.path.join(TMP, "p.csv")
     for f in (out, poses):
         if os.path.exists(f):
@@ -155,9 +166,45 @@ for name, rec, scn, extra, counted in CASES:
         check(counted in rej, f"{name}: the bad samples were counted ({rej})")
     rows.append((name, f"{j['frames']}", f"{pen * 1e3:.3f}", f"{gap:.1e}", f"{j['hz_median']:.0f}",
                  rej if counted else "-", f"{secs:.1f} s"))
+    if LAUNCH:
+        report = os.path.join(TMP, "launch.json")
+        if os.path.exists(report):
+            os.remove(report)
+        lcmd = [LAUNCH, "--domain", DOMAIN, "--lockstep", "--recording", rec, "--scene", scn, "--json", report,
+                "--log-dir", os.path.join(TMP, "logs"), "--quiet", "--check"]
+        print("$ " + " ".join(lcmd), flush=True)
+        t0 = time.time()
+        try:
+            lr = subprocess.run(lcmd, capture_output=True, text=True, timeout=300)
+            code, tail = lr.returncode, (lr.stdout + lr.stderr).strip()[-400:]
+        except subprocess.TimeoutExpired:
+            code, tail = -1, "timed out after 300 s"
+        lsecs = time.time() - t0
+        d = json.load(open(report)) if os.path.exists(report) else {}
+        if open(scn).read().count("objects {") > WIRE_MAX_OBJECTS:
+            # More objects than SceneState carries: the scene service must refuse at start-up, in
+            # one line naming the limit (the in-process pipeline has no such limit).
+            log = os.path.join(TMP, "logs", "scene.log")
+            said = open(log).read() if os.path.exists(log) else ""
+            check(code != 0 and f"the wire carries at most {WIRE_MAX_OBJECTS}" in said,
+                  f"{name}: refused at start-up by the scene service, one line naming the wire's limit ({said.strip()[:120]})")
+            dist_rows.append((name, "0", "-", f"refused: the wire carries at most {WIRE_MAX_OBJECTS} objects", f"{lsecs:.1f} s"))
+            continue
+        check(code == 0 and bool(d), f"{name}: distributed lock-step --check exit {code}{'' if code == 0 else ': ' + tail}")
+        check(d.get("result_hash") == j.get("result_hash"),
+              f"{name}: distributed result_hash {d.get('result_hash')} == in-process {j.get('result_hash')}")
+        dpen = d.get("penetration_max_m", 1.0)
+        check(dpen <= margin, f"{name}: distributed penetration {dpen * 1e3:.4f} mm within the margin")
+        check(d.get("shm_segments_left", -1) == 0, f"{name}: no shared-memory segment left ({d.get('shm_segments_left')})")
+        dist_rows.append((name, f"{d.get('frames', 0)}", f"{dpen * 1e3:.3f}",
+                          "same" if d.get("result_hash") == j.get("result_hash") else "DIFFERENT", f"{lsecs:.1f} s"))
 
 print("extreme: | case | frames | penetration mm | joint gap m | Hz median | counted | run |")
 for row in rows:
     print("extreme: | " + " | ".join(row) + " |")
+if LAUNCH:
+    print("extreme-distributed: | case | frames | penetration mm | result hash vs in-process | run |")
+    for row in dist_rows:
+        print("extreme-distributed: | " + " | ".join(row) + " |")
 print("PASSED" if not failures else f"{len(failures)} check(s) FAILED")
 sys.exit(1 if failures else 0)
