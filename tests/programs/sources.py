@@ -12,6 +12,7 @@ cases:
   formats DATA_DIR                 lock-step runs through the lab with --check of a .dtrack file, the
                                    Aria CSV sample, OpenXR and MediaPipe JSON Lines and a synthetic
                                    script (detected by content)
+  tool-openxr LAB                  a tool cluster driven by an OpenXR 6-DOF body (JSON Lines), lock-step and live
   tool LAB DTRACK_FILE SENDER      a tool cluster driven by a DTrack 6d body (tracker_body) beside a
                                    right hand: in lock-step from the file and live over UDP with
                                    every fault; the tool is tracked, follows its body exactly when
@@ -233,7 +234,7 @@ def case_formats(data):
         check(h is not None and h == j.get("result_hash"), f"{name}: result hash {j.get('result_hash')} == godhand-bench's {h}")
 
 
-def tool_checks(j, what, lossy):
+def tool_checks(j, what, lossy, frames=307):
     d = j.get("delivery", {}).get("tool", {})
     hand = j.get("plausibility", {}).get("per_hand", {}).get("tool", {})
     print(f"{what}: tool delivery {d}; tool figures: tracked {hand.get('tracked')}, model error {hand.get('model_error_m')}, "
@@ -242,7 +243,7 @@ def tool_checks(j, what, lossy):
     if lossy:
         check(d.get("expected", 0) > 50 and d.get("lost", 1) <= d["expected"] * LOSS, f"{what}: tool frames lost within {LOSS:.0%}")
     else:
-        check(d.get("expected") == 307 and d.get("fresh") == 307, f"{what}: every one of 307 frames delivered fresh for the tool")
+        check(d.get("expected") == frames and d.get("fresh") == frames, f"{what}: every one of {frames} frames delivered fresh for the tool")
     # Tracked in every frame that carried its body (every accepted datagram does), started once tracked.
     check(hand.get("tracked", 0) >= 0.95 * d.get("fresh", 1e9) and hand.get("started", 0) >= hand.get("tracked", 1),
           f"{what}: the tool tracked in the frames delivered ({hand.get('tracked')} of {d.get('fresh')}) and started")
@@ -251,6 +252,23 @@ def tool_checks(j, what, lossy):
           f"{what}: the tool on its tracked body wherever no contact loads it")
     check(j.get("penetration_max_m", 1) <= j.get("margin_m", 0), f"{what}: penetration-free ({j.get('penetration_max_m')} m)")
     check(j.get("shm_segments_left", -1) == 0, f"{what}: no shared-memory segment left behind")
+
+
+def case_tool_openxr(lab):
+    """A tool cluster driven by an OpenXR 6-DOF body from a JSON Lines recording, through every
+    service: lock-step (every frame fresh, the tool exactly on its body where nothing loads it) and
+    live (the replay at its own rate, losses within the budget)."""
+    logs = os.path.join(TMP, "logs")
+    for mode, lossy in (("lock-step", False), ("live", True)):
+        report = os.path.join(TMP, f"tool-openxr-{mode}.json")
+        shutil.rmtree(logs, ignore_errors=True)
+        cmd = [os.path.join(BIN, "godhand-launch"), "--lab", lab, "--domain", DOMAIN, "--check", "--json", report,
+               "--log-dir", logs, "--quiet"] + (["--lockstep"] if not lossy else ["--loss-budget", str(LOSS)])
+        print("$ " + " ".join(cmd), flush=True)
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
+        print(r.stdout[-3000:] + r.stderr[-2000:], flush=True)
+        check(r.returncode == 0, f"{mode} run of the OpenXR tool lab with --check exited 0 (was {r.returncode})")
+        tool_checks(json.load(open(report)) if os.path.exists(report) else {}, f"openxr {mode}", lossy, frames=80)
 
 
 def case_tool(lab, dtrack_file, sender):
@@ -290,6 +308,8 @@ try:
         case_formats(*ARGS)
     elif CASE == "tool":
         case_tool(*ARGS)
+    elif CASE == "tool-openxr":
+        case_tool_openxr(*ARGS)
     else:
         print("unknown case " + CASE)
         sys.exit(2)

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes pinch_openxr.jsonl and pinch_mediapipe.jsonl: the first 80 frames of
+"""Writes pinch_openxr.jsonl, pinch_openxr_tool.jsonl and pinch_mediapipe.jsonl: the first 80 frames of
 deploy/recordings/pinch.json (the right hand) in godhand's OpenXR and MediaPipe JSON Lines formats
 (bridges/README.md), for the lock-step lab runs of tests/programs/sources.py (formats case).
 Leap's device frame (mm, +Y up, right-handed) has OpenXR's axes, so an OpenXR joint is the Leap
@@ -7,6 +7,9 @@ point / 1000; MediaPipe's camera frame (x right, y down, z forward) is (x, -y, -
 to the wrist (written as the origin). Joints OpenXR has and Leap does not: the wrist (2 palm -
 middle MCP) and the four metacarpal joints (midway wrist -> MCP). Only positions are written
 (flags 0xA: position valid and tracked), so the palm frame comes from the bones.
+pinch_openxr_tool.jsonl also carries a 6-DOF body (id 1, flags 0xF): a controller held 8 cm above
+the palm, turned a little more each frame about the vertical, for a lab's tool cluster
+(tracker_body 1; tests/data/lab/tool_openxr.pbtxt).
 usage: make_jsonl.py [PINCH_JSON] [OUT_DIR]"""
 import json
 import os
@@ -34,8 +37,12 @@ def fmt(v):
     return "[" + ",".join("%.9f" % c for c in v) + "]"
 
 
-with open(os.path.join(out, "pinch_openxr.jsonl"), "w") as a, open(os.path.join(out, "pinch_mediapipe.jsonl"), "w") as b:
+import math
+
+with open(os.path.join(out, "pinch_openxr.jsonl"), "w") as a, open(os.path.join(out, "pinch_mediapipe.jsonl"), "w") as b, \
+        open(os.path.join(out, "pinch_openxr_tool.jsonl"), "w") as c:
     a.write('{"format": "godhand-openxr-hands", "version": 1}\n')
+    c.write('{"format": "godhand-openxr-hands", "version": 1}\n')
     b.write('{"format": "godhand-mediapipe-world", "version": 1}\n')
     for f in frames:
         hand = [h for h in f["hands"] if h["type"] == "right"][0]
@@ -54,6 +61,15 @@ with open(os.path.join(out, "pinch_openxr.jsonl"), "w") as a, open(os.path.join(
         js = ",".join("[" + ",".join("%.9f" % c for c in xr(j)) + ",0,0,0,1,0.01,10]" for j in joints)
         a.write('{"time_ns": %d, "hands": [{"side": "right", "id": %d, "active": true, "confidence": %.6f, "joints": [%s]}]}\n'
                 % (f["timestamp"] * 1000, hand["id"], hand["confidence"], js))
+        # The controller: 8 cm above the palm (OpenXR +Y up), yaw 0.01 rad per frame about +Y.
+        k = frames.index(f)
+        yaw = 0.01 * k
+        pose = xr(palm)
+        pose[1] += 0.08
+        quat = [0.0, math.sin(yaw / 2), 0.0, math.cos(yaw / 2)]  # x, y, z, w
+        c.write('{"time_ns": %d, "hands": [{"side": "right", "id": %d, "active": true, "confidence": %.6f, "joints": [%s]}], '
+                '"bodies": [{"id": 1, "pose": %s, "flags": 15}]}\n'
+                % (f["timestamp"] * 1000, hand["id"], hand["confidence"], js, fmt(pose + quat)))
         # MediaPipe: wrist, thumb CMC, MCP, IP, tip, then per finger MCP, PIP, DIP, tip.
         lm = [wrist, t["mcpPosition"], t["pipPosition"], t["dipPosition"], t["tipPosition"]]
         for i in (1, 2, 3, 4):
