@@ -51,7 +51,15 @@ FIGURES = [
     ("joint_gap_max_m", ("joint_gap_max_m",), True),
     ("kkt_residual_max", ("kkt_residual_max",), True),
     ("god_triangles", ("triangles",), False),
+    ("stage_contacts_us", ("stages_us", "contacts"), False),
+    ("stage_solve_us", ("stages_us", "solve"), False),
+    ("stage_integrate_us", ("stages_us", "integrate"), False),
+    ("stage_ccd_us", ("stages_us", "ccd"), False),
+    ("stage_scene_us", ("stages_us", "scene"), False),
 ]
+# Per-point step-time breakdown (median us per stage, godhand-bench's stages_us) for the plot.
+STAGES = (("stage_contacts_us", "contacts"), ("stage_solve_us", "solve"), ("stage_integrate_us", "integrate + projection"),
+          ("stage_ccd_us", "sweeps (CCD)"), ("stage_scene_us", "scene"))
 # The Pareto front is over these (all minimised): time, depth, lag.
 PARETO = ("step_median_us", "penetration_max_m", "excess_lag_p95_m")
 
@@ -136,8 +144,8 @@ def plot(points, front, path):
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
     except ImportError:
-        fail("--plot needs matplotlib (Debian: apt install python3-matplotlib)")
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
+        fail("--plot needs matplotlib (Debian: apt install python3-matplotlib, for /usr/bin/python3)")
+    fig, axes = plt.subplots(1, 3, figsize=(16, 4.8))
     for ax, (fig_name, label) in zip(axes, (("excess_lag_p95_m", "excess lag p95 (mm)"), ("penetration_max_m", "penetration max (mm)"))):
         for i, p in enumerate(points):
             y = p.get(fig_name)
@@ -149,6 +157,19 @@ def plot(points, front, path):
         ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
     axes[0].set_title("red: Pareto front (time, penetration, lag)", fontsize=9)
+    # Step-time breakdown per point: the stages' medians stacked (their sum is not the step's
+    # median, which is of the sums).
+    ax = axes[2]
+    bottom = [0.0] * len(points)
+    for k, (name, label) in enumerate(STAGES):
+        vals = [(p.get(name) or 0.0) / 1e3 for p in points]
+        ax.bar(range(len(points)), vals, bottom=bottom, label=label, color=f"C{k}")
+        bottom = [b + v for b, v in zip(bottom, vals)]
+    ax.set_xticks(range(len(points)))
+    ax.set_xlabel("point")
+    ax.set_ylabel("median per stage (ms)")
+    ax.set_title("step-time breakdown per point", fontsize=9)
+    ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 

@@ -5,6 +5,7 @@
 
 #include <cstdio>
 #include <fstream>
+#include <unistd.h>
 #include <set>
 #include <sstream>
 
@@ -105,7 +106,8 @@ std::string sweepSpecJson(const SweepSpec& spec) {
 std::vector<std::string> sweepCommand(const std::vector<std::string>& args, const std::string& script,
                                       const std::string& bench) {
   static const std::set<std::string> kPassed = {"--recording", "--mesh", "--scene", "--frames", "--json", "--plot", "--target"};
-  std::vector<std::string> cmd = {"python3", script, "--bench", bench};
+  // Debian's python3 (where apt installs python3-matplotlib, for --plot) when it is there.
+  std::vector<std::string> cmd = {::access("/usr/bin/python3", X_OK) == 0 ? "/usr/bin/python3" : "python3", script, "--bench", bench};
   std::string grid;
   for (size_t i = 0; i < args.size(); ++i) {
     const std::string& f = args[i];

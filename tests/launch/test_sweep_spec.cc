@@ -4,6 +4,8 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include "common/sweep_spec.h"
 
 namespace godhand {
@@ -59,7 +61,7 @@ TEST(SweepSpec, BenchSweepIsTheSweepPyCommand) {
   EXPECT_EQ(sweepCommand({"--recording", "r.json", "--sweep", "g.pbtxt", "--mesh", "a.obj", "--mesh", "b.obj:0.2", "--json",
                           "o.json", "--target", "penetration_max_m<=1e-4"},
                          "/src/sweep.py", "/bin/godhand-bench"),
-            (std::vector<std::string>{"python3", "/src/sweep.py", "--bench", "/bin/godhand-bench", "--recording", "r.json",
+            (std::vector<std::string>{::access("/usr/bin/python3", X_OK) == 0 ? "/usr/bin/python3" : "python3", "/src/sweep.py", "--bench", "/bin/godhand-bench", "--recording", "r.json",
                                       "--mesh", "a.obj", "--mesh", "b.obj:0.2", "--json", "o.json", "--target",
                                       "penetration_max_m<=1e-4", "--grid", "g.pbtxt"}));
   auto errorFor = [](const std::vector<std::string>& args) {
