@@ -1,6 +1,5 @@
 #include "model/hand_model.h"
 
-#include <google/protobuf/io/tokenizer.h>
 #include <google/protobuf/text_format.h>
 
 #include <algorithm>
@@ -9,6 +8,7 @@
 #include <set>
 #include <sstream>
 
+#include "model/text_proto.h"
 #include "hand_model.pb.h"
 
 namespace godhand {
@@ -20,17 +20,6 @@ using google::protobuf::FieldDescriptor;
 using google::protobuf::Message;
 using google::protobuf::TextFormat;
 
-/// Collects the first syntax error of the text parser with its position.
-class FirstError : public google::protobuf::io::ErrorCollector {
- public:
-  void AddError(int line, google::protobuf::io::ColumnNumber column,
-                const std::string& message) override {
-    if (!has) { has = true; text = std::to_string(line + 1) + ":" + std::to_string(column + 1) + ": " + message; }
-  }
-  void AddWarning(int, google::protobuf::io::ColumnNumber, const std::string&) override {}
-  bool has = false;
-  std::string text;
-};
 
 /// Finds the source line of a field in a parsed message, for error messages.
 class Locator {
@@ -179,13 +168,8 @@ HandModel HandModel::loadFile(const std::string& path) {
 HandModel HandModel::fromText(const std::string& text, const std::string& source) {
   pb::HandModel msg;
   TextFormat::ParseInfoTree tree;
-  FirstError errors;
-  TextFormat::Parser parser;
-  parser.RecordErrorsTo(&errors);
-  parser.WriteLocationsTo(&tree);
-  if (!parser.ParseFromString(text, &msg)) {
-    throw ModelError(source + ":" + (errors.has ? errors.text : std::string("unparsable model")));
-  }
+  std::string syntax;
+  if (!parseTextProto(text, &msg, &tree, &syntax, "unparsable model")) throw ModelError(source + ":" + syntax);
   const Locator loc(source, &tree);
   const FieldDescriptor* f_bodies = msg.GetDescriptor()->FindFieldByName("bodies");
   const FieldDescriptor* f_joints = msg.GetDescriptor()->FindFieldByName("joints");

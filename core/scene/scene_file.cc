@@ -1,6 +1,5 @@
 #include "scene/scene_file.h"
 
-#include <google/protobuf/io/tokenizer.h>
 #include <google/protobuf/text_format.h>
 
 #include <cmath>
@@ -14,6 +13,7 @@
 #include <set>
 #include <sstream>
 
+#include "model/text_proto.h"
 #include "scene.pb.h"
 #include "scene/mesh_io.h"
 
@@ -32,16 +32,6 @@ using google::protobuf::TextFormat;
 
 constexpr long long kMaxSubdividedTriangles = 50'000'000;
 
-/// Collects the first syntax error of the text parser with its position.
-class FirstError : public google::protobuf::io::ErrorCollector {
- public:
-  void AddError(int line, google::protobuf::io::ColumnNumber column, const std::string& message) override {
-    if (!has) { has = true; text = std::to_string(line + 1) + ":" + std::to_string(column + 1) + ": " + message; }
-  }
-  void AddWarning(int, google::protobuf::io::ColumnNumber, const std::string&) override {}
-  bool has = false;
-  std::string text;
-};
 
 /// "SOURCE:LINE: PATH: " for field `name` of `msg` (index -1 for singular fields), falling back
 /// to the enclosing message's line when the field is absent (same scheme as the hand model).
@@ -259,12 +249,8 @@ std::string lower(std::string s) {
 Scene parseScene(const std::string& text, const std::string& source, const std::string& base_dir) {
   pb::Scene msg;
   TextFormat::ParseInfoTree tree;
-  FirstError errors;
-  TextFormat::Parser parser;
-  parser.RecordErrorsTo(&errors);
-  parser.WriteLocationsTo(&tree);
-  if (!parser.ParseFromString(text, &msg))
-    throw SceneError(source + ":" + (errors.has ? errors.text : std::string("unparsable scene")));
+  std::string syntax;
+  if (!parseTextProto(text, &msg, &tree, &syntax, "unparsable scene")) throw SceneError(source + ":" + syntax);
 
   Scene scene;
   scene.name = msg.name().empty() ? fs::path(source).stem().string() : msg.name();

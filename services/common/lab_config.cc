@@ -1,6 +1,5 @@
 #include "common/lab_config.h"
 
-#include <google/protobuf/io/tokenizer.h>
 #include <arpa/inet.h>
 #include <google/protobuf/text_format.h>
 #include <unistd.h>
@@ -12,6 +11,8 @@
 #include <filesystem>
 #include <map>
 #include <sstream>
+
+#include "model/text_proto.h"
 
 namespace godhand {
 
@@ -26,19 +27,6 @@ constexpr unsigned kMaxDomainId = 232;
 constexpr double kDefaultDeadlineS = 10.0;
 constexpr double kDefaultStaleAfterS = 0.25;
 
-/// Collects the first syntax error of the text parser with its position.
-class FirstError : public google::protobuf::io::ErrorCollector {
- public:
-  void AddError(int line, google::protobuf::io::ColumnNumber column, const std::string& message) override {
-    if (!has) {
-      has = true;
-      text = std::to_string(line + 1) + ":" + std::to_string(column + 1) + ": " + message;
-    }
-  }
-  void AddWarning(int, google::protobuf::io::ColumnNumber, const std::string&) override {}
-  bool has = false;
-  std::string text;
-};
 
 /// 1-based line of field `name` (element `index` of a repeated field, -1 for a singular one) of
 /// `msg`, or `fallback` when the field is absent from the text (or unknown).
@@ -189,12 +177,8 @@ bool runsHere(const LabService& s, const std::string& host) { return host.empty(
 LabConfig parseLab(const std::string& text, const std::string& source, const std::string& base_dir) {
   pb::Lab msg;
   TextFormat::ParseInfoTree tree;
-  FirstError errors;
-  TextFormat::Parser parser;
-  parser.RecordErrorsTo(&errors);
-  parser.WriteLocationsTo(&tree);
-  if (!parser.ParseFromString(text, &msg))
-    throw LabError(source + ":" + (errors.has ? errors.text : std::string("0: unparsable lab file")));
+  std::string syntax;
+  if (!parseTextProto(text, &msg, &tree, &syntax, "0: unparsable lab file")) throw LabError(source + ":" + syntax);
 
   std::error_code ec;
   fs::path base = fs::absolute(base_dir.empty() ? fs::path(".") : fs::path(base_dir), ec);

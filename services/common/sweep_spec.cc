@@ -1,33 +1,20 @@
 #include "common/sweep_spec.h"
 
-#include <google/protobuf/io/tokenizer.h>
 #include <google/protobuf/text_format.h>
+#include <unistd.h>
 
 #include <cstdio>
 #include <fstream>
-#include <unistd.h>
 #include <set>
 #include <sstream>
 
+#include "model/text_proto.h"
 #include "sweep.pb.h"
 
 namespace godhand {
 
 namespace {
 using google::protobuf::TextFormat;
-
-class FirstError : public google::protobuf::io::ErrorCollector {
- public:
-  void AddError(int line, google::protobuf::io::ColumnNumber column, const std::string& message) override {
-    if (!has) {
-      has = true;
-      text = std::to_string(line + 1) + ":" + std::to_string(column + 1) + ": " + message;
-    }
-  }
-  void AddWarning(int, google::protobuf::io::ColumnNumber, const std::string&) override {}
-  bool has = false;
-  std::string text;
-};
 
 std::string jsonString(const std::string& s) {
   std::string out = "\"";
@@ -51,12 +38,8 @@ std::string jsonString(const std::string& s) {
 SweepSpec parseSweepSpec(const std::string& text, const std::string& source) {
   pb::SweepGrid msg;
   TextFormat::ParseInfoTree tree;
-  FirstError errors;
-  TextFormat::Parser parser;
-  parser.RecordErrorsTo(&errors);
-  parser.WriteLocationsTo(&tree);
-  if (!parser.ParseFromString(text, &msg))
-    throw SweepSpecError(source + ":" + (errors.has ? errors.text : std::string("unparsable sweep grid")));
+  std::string syntax;
+  if (!parseTextProto(text, &msg, &tree, &syntax, "unparsable sweep grid")) throw SweepSpecError(source + ":" + syntax);
   const auto* f_knobs = msg.GetDescriptor()->FindFieldByName("knobs");
   auto lineOf = [&](int i) {
     const auto loc = tree.GetLocation(f_knobs, i);
