@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <set>
 #include <sstream>
 
@@ -155,14 +154,6 @@ std::array<double, 2> jointAngles(const Joint& j, const Pose& X_WP, const Pose& 
 
 double jointGap(const Joint& j, const Pose& X_WP, const Pose& X_WC) {
   return ((X_WC * j.X_CJ.p) - (X_WP * j.X_PJ.p)).norm();
-}
-
-HandModel HandModel::loadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ModelError(path + ": cannot open model file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return fromText(ss.str(), path);
 }
 
 HandModel HandModel::fromText(const std::string& text, const std::string& source) {

@@ -88,10 +88,10 @@ struct HandModel {
   /// World poses of all bodies at rest when the model frame is placed at X_WM.
   std::vector<Pose> restPoses(const Pose& X_WM) const;
 
-  /// Parses and validates a model. `source` names the origin in error messages.
+  /// Parses and validates a model; throws ModelError with "SOURCE:LINE: field: reason" on any
+  /// problem. `source` names the origin in error messages. (Reading a model file is
+  /// loadHandModel in services/common/files.h: core opens no files.)
   static HandModel fromText(const std::string& text, const std::string& source);
-  /// Reads a model file; throws ModelError with "FILE:LINE: field: reason" on any problem.
-  static HandModel loadFile(const std::string& path);
 };
 
 /// Joint angles (rad) of joint j for the given body poses (world): [angle 1, angle 2].

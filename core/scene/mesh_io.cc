@@ -2,13 +2,11 @@
 
 #include <algorithm>
 #include <cctype>
-#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <sstream>
 #include <unordered_map>
@@ -435,19 +433,15 @@ TriangleMesh parseStl(const std::string& bytes, const std::string& source, MeshS
   fail(source, 1, "not an STL file: no 'solid' and too short (" + std::to_string(bytes.size()) + " bytes) for binary STL");
 }
 
-TriangleMesh loadMeshFile(const std::string& path, MeshStats* stats) {
-  namespace fs = std::filesystem;
-  std::error_code ec;
-  if (!fs::exists(path, ec)) fail(path, 0, "cannot open mesh file: no such file");
-  if (!fs::is_regular_file(path, ec)) fail(path, 0, "cannot open mesh file: not a regular file");
-  std::string ext = fs::path(path).extension().string();
+std::string meshFormat(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (ext != ".obj" && ext != ".stl") fail(path, 0, "unsupported mesh format '" + ext + "' (expected .obj or .stl)");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail(path, 0, std::string("cannot open mesh file: ") + std::strerror(errno));
-  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) fail(path, 0, "read error");
-  return ext == ".obj" ? parseObj(bytes, path, stats) : parseStl(bytes, path, stats);
+  return ext;
+}
+
+TriangleMesh parseMeshFile(const std::string& bytes, const std::string& path, MeshStats* stats) {
+  return meshFormat(path) == ".obj" ? parseObj(bytes, path, stats) : parseStl(bytes, path, stats);
 }
 
 // ---------------------------------------------------------------------------------------------

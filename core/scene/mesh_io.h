@@ -6,7 +6,7 @@
 // duplicate triangles, open-edge counts), and the Debian mesh-import library (assimp) would pull
 // in ~40 formats and its own post-processing whose results we would have to re-check anyway.
 //
-// Cleaning (loadMeshFile / cleanMesh), in this order:
+// Cleaning (parseMeshFile / parseObj / parseStl / cleanMesh), in this order:
 //   1. weld vertices with bit-identical coordinates (-0 = +0); STL's unshared corners weld here;
 //   2. drop degenerate triangles: repeated vertex indices, or |(b−a)×(c−a)| ≤ 1e-12 · L² with L
 //      the bounding-box diagonal (zero area relative to the mesh size);
@@ -52,9 +52,15 @@ struct MeshStats {
   std::string summary() const;
 };
 
-/// Reads an OBJ (.obj) or STL (.stl, ASCII or binary) file and cleans it (see above).
-/// Coordinates are taken as they are (no unit conversion). Throws MeshError.
-geo::TriangleMesh loadMeshFile(const std::string& path, MeshStats* stats = nullptr);
+/// The format a mesh file's name says, from its extension in any case: ".obj" or ".stl".
+/// Throws MeshError "PATH:0: unsupported mesh format 'EXT' (expected .obj or .stl)" otherwise.
+/// (Reading the file is loadMeshFile in services/common/files.h: core opens no files.)
+std::string meshFormat(const std::string& path);
+
+/// The bytes of an OBJ (.obj) or STL (.stl, ASCII or binary) file, parsed in the format
+/// meshFormat(path) names and cleaned (see above); `path` names it in errors. Coordinates are
+/// taken as they are (no unit conversion). Throws MeshError.
+geo::TriangleMesh parseMeshFile(const std::string& bytes, const std::string& path, MeshStats* stats = nullptr);
 
 /// Parses OBJ / STL text or bytes already in memory; `source` names it in errors.
 geo::TriangleMesh parseObj(const std::string& text, const std::string& source, MeshStats* stats = nullptr);

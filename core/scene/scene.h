@@ -1,7 +1,8 @@
 // A loaded scene: the objects God hands collide with and the Bullet world simulates, each at
 // the fidelity the scene file asks for ("model only what a scene requires"). Produced by
-// loadScene() / meshScene() (scene_file.h) from idl/scene.proto text files; immutable after
-// loading (poses of dynamic objects live in the physics world, not here).
+// parseScene() / meshScene() (scene_file.h) from idl/scene.proto text (the programs read the
+// files with loadScene() of services/common/files.h); immutable after loading (poses of dynamic
+// objects live in the physics world, not here).
 #pragma once
 
 #include <memory>

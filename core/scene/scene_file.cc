@@ -6,7 +6,6 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <functional>
 #include <map>
 #include <optional>
@@ -85,21 +84,23 @@ struct MeshAsset {
   std::map<std::string, AutoChoice> auto_choice;  ///< by tolerance
 };
 
-/// Everything loaded once per loadScene / meshScene call and shared between objects.
+/// Everything loaded once per parseScene / meshScene call and shared between objects.
 class Cache {
  public:
-  /// The cleaned mesh of a file (throws MeshError).
+  explicit Cache(const MeshLoader& load_mesh) : load_mesh_(load_mesh) {}
+
+  /// The cleaned mesh of a file (throws MeshError). Keyed by the path string as given: a
+  /// canonical path would ask the file system (core does no I/O), and a lexical normalisation
+  /// could merge two files ("link/../a.obj" is not "a.obj" when link is a symbolic link).
   const TriangleMesh& raw(const std::string& file) {
-    const std::string key = fs::weakly_canonical(file).string();
-    auto it = raw_.find(key);
-    if (it == raw_.end()) it = raw_.emplace(key, loadMeshFile(file)).first;
+    auto it = raw_.find(file);
+    if (it == raw_.end()) it = raw_.emplace(file, load_mesh_(file)).first;
     return it->second;
   }
 
   MeshAsset& asset(const std::string& file, double scale, bool centre, int subdiv) {
     const TriangleMesh& r = raw(file);
-    const std::string key = fs::weakly_canonical(file).string() + "|" + bits(scale) + "|" + (centre ? "c" : "-") +
-                            "|" + std::to_string(subdiv);
+    const std::string key = file + "|" + bits(scale) + "|" + (centre ? "c" : "-") + "|" + std::to_string(subdiv);
     auto it = assets_.find(key);
     if (it != assets_.end()) return it->second;
     MeshAsset a;
@@ -135,6 +136,7 @@ class Cache {
   }
 
  private:
+  const MeshLoader& load_mesh_;
   std::map<std::string, TriangleMesh> raw_;
   std::map<std::string, MeshAsset> assets_;
   std::map<std::string, std::shared_ptr<const MeshBvh>> primitives_;
@@ -246,7 +248,8 @@ std::string lower(std::string s) {
 
 }  // namespace
 
-Scene parseScene(const std::string& text, const std::string& source, const std::string& base_dir) {
+Scene parseScene(const std::string& text, const std::string& source, const std::string& base_dir,
+                 const MeshLoader& load_mesh) {
   pb::Scene msg;
   TextFormat::ParseInfoTree tree;
   std::string syntax;
@@ -261,7 +264,7 @@ Scene parseScene(const std::string& text, const std::string& source, const std::
   if (msg.objects_size() == 0) throw SceneError(source + ":1: objects: a scene needs at least one object");
 
   const FieldDescriptor* f_objects = msg.GetDescriptor()->FindFieldByName("objects");
-  Cache cache;
+  Cache cache(load_mesh);
   std::set<std::string> ids;
   for (int i = 0; i < msg.objects_size(); ++i) {
     const pb::SceneObject& po = msg.objects(i);
@@ -449,14 +452,6 @@ Scene parseScene(const std::string& text, const std::string& source, const std::
   return scene;
 }
 
-Scene loadScene(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in || fs::is_directory(path)) throw SceneError(path + ":0: cannot open scene file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return parseScene(ss.str(), path, fs::path(path).parent_path().string());
-}
-
 MeshSpec parseMeshSpec(const std::string& arg) {
   MeshSpec spec;
   spec.path = arg;
@@ -502,10 +497,10 @@ GodFidelity parseGodFidelity(const std::string& arg) {
   throw SceneError("God-side fidelity '" + arg + "': expected full, hull, decimated:N (N >= 4 triangles) or auto:MM (tolerance in mm, > 0)");
 }
 
-Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre) {
+Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre, const MeshLoader& load_mesh) {
   if (specs.empty()) throw SceneError("--mesh: no mesh given");
   if (!centre.allFinite()) throw SceneError("--mesh: the centre must be finite");
-  Cache cache;
+  Cache cache(load_mesh);
   Scene scene;
   std::map<std::string, int> stems;
   for (const MeshSpec& spec : specs) {

@@ -13,11 +13,16 @@
 //   box / sphere / cylinder: god = reference = the enclosing tessellation (mesh_io.h); physics
 //              PRIMITIVE (default) → the exact primitive; CONVEX_HULL → tessellation vertices;
 //              TRIANGLE_MESH (static only) → the tessellation; NONE (static only).
-// Objects with the same mesh file, scale, centring, subdivision and god fidelity share their
-// BVHs (a cache inside one load call), so instancing a mesh costs no memory.
+// Objects with the same mesh path, scale, centring, subdivision and god fidelity share their
+// BVHs (a cache inside one parse call), so instancing a mesh costs no memory. The path is
+// compared as the string the MeshLoader is given (a scene's mesh path joined to the scene's
+// directory, lexically normal; a `--mesh` path as written): core asks the file system nothing,
+// so two spellings of one file (a symbolic link, an absolute and a relative path) load it twice,
+// with the same result.
 // World position of a mesh-file vertex v: X_WO * (scale · v + translation).
 #pragma once
 
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -32,12 +37,17 @@ class SceneError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-/// Loads and validates a scene file (throws SceneError; mesh errors carry the scene location
-/// followed by the mesh file's own "FILE:LINE: reason").
-Scene loadScene(const std::string& path);
+/// Reads and cleans the mesh file at `path` (throws MeshError "FILE:LINE: reason"). Core opens
+/// no files: the programs pass meshFileLoader() of services/common/files.h, tests may pass
+/// meshes from memory. Called once per distinct path string within one parseScene / meshScene.
+using MeshLoader = std::function<geo::TriangleMesh(const std::string& path)>;
 
-/// Same, from text in memory; mesh paths are relative to `base_dir`; `source` names it in errors.
-Scene parseScene(const std::string& text, const std::string& source, const std::string& base_dir);
+/// Parses and validates a scene file's text (throws SceneError; mesh errors carry the scene
+/// location followed by the mesh file's own "FILE:LINE: reason"). Mesh paths are relative to
+/// `base_dir` and read through `load_mesh`; `source` names the text in errors. (Reading a scene
+/// file is loadScene in services/common/files.h.)
+Scene parseScene(const std::string& text, const std::string& source, const std::string& base_dir,
+                 const MeshLoader& load_mesh);
 
 /// What the God-object collision sees of a `--mesh` object (the scene file's `god` fidelity):
 /// the full mesh, a vertex-clustering decimation to about `target_triangles`, the convex hull, or
@@ -67,7 +77,8 @@ MeshSpec parseMeshSpec(const std::string& arg);
 /// and its bounding-box centre placed at `centre` (object frame origin = that centre, X_WO =
 /// {centre, identity}, translation = −scale · bbox centre), static, god as spec.god, physics
 /// TRIANGLE_MESH, friction 0.5. Ids are the file stems (made unique with _2, _3, ...).
-/// Throws SceneError (with the mesh file's "FILE:LINE: reason").
-Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre);
+/// The meshes are read through `load_mesh`. Throws SceneError (with the mesh file's
+/// "FILE:LINE: reason").
+Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre, const MeshLoader& load_mesh);
 
 }  // namespace godhand

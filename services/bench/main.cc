@@ -22,6 +22,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "common/files.h"
 #include "common/sweep_spec.h"
 #include "runtime/trace_env.h"
 #include "leap/leap_recording.h"
@@ -262,10 +263,10 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) { fail(e.what()); }
   if (rec.frames.empty()) fail(args.recording + ": no usable frames (" + rec.rejections + ")");
   try {
-    right = HandModel::loadFile(args.right_model);
-    left = HandModel::loadFile(args.left_model);
+    right = loadHandModel(args.right_model);
+    left = loadHandModel(args.left_model);
     for (const auto& [file, body] : args.tools) {
-      tool_models.push_back(HandModel::loadFile(file));
+      tool_models.push_back(loadHandModel(file));
       if (!leap::isToolModel(tool_models.back()))
         fail("--tool " + file + ": not a tool model (every body needs tracker_segment \"tool\")");
     }
@@ -278,7 +279,7 @@ int main(int argc, char** argv) {
         specs.push_back(parseMeshSpec(m));
         specs.back().god = god;
       }
-      scene = meshScene(specs, rec.mean_palm_W);
+      scene = meshScene(specs, rec.mean_palm_W, meshFileLoader());
     } else if (args.scene == "none") {
       scene.name = "none";
     } else {

@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "common/files.h"
 #include "model/hand_model.h"
 #include "step/cluster_step.h"
 
@@ -46,7 +47,7 @@ Vec3 closestOnSegment(const Vec3& a, const Vec3& b, const Vec3& p) {
 
 /// Exact contacts of one body against the table and the ball within `reach`, and the body's
 /// exact signed distance to each (for the penetration figure).
-struct Scene {
+struct DemoScene {
   Plane table{0.0};
   Ball ball{Vec3(0.0, 0.19, 0.04), 0.04};
   double reach = 0.05;  // speculative contacts: tangent half-spaces of convex obstacles are conservative
@@ -137,7 +138,7 @@ int main(int argc, char** argv) {
 
   HandModel model;
   try {
-    model = HandModel::loadFile(model_path);
+    model = loadHandModel(model_path);
   } catch (const ModelError& e) {
     fail(e.what());
   }
@@ -147,7 +148,7 @@ int main(int argc, char** argv) {
   } catch (const std::invalid_argument& e) {
     fail(e.what());
   }
-  const Scene scene;
+  const DemoScene scene;
   // Model frame: palm-down hand, fingers along +y; place it 5 cm above the table, behind the ball.
   const double lift = 0.05;
   const Phase phases[] = {

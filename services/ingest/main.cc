@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <thread>
 
+#include "common/files.h"
 #include "leap/retarget.h"
 #include "leap/tool_target.h"
 #include "model/hand_model.h"
@@ -110,7 +111,7 @@ int main(int argc, char** argv) {
       cli.fail("--record needs a live source (a recording is already a file)");
     }
     for (size_t c = 0; c < lab.clusters.size(); ++c) {
-      models[c] = HandModel::loadFile(lab.clusters[c].model);
+      models[c] = loadHandModel(lab.clusters[c].model);
       const bool tool_cluster = lab.clusters[c].tracker_body >= 0;
       if (tool_cluster != leap::isToolModel(models[c]))
         cli.fail("cluster '" + lab.clusters[c].name + "': model " + lab.clusters[c].model +

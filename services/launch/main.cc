@@ -29,6 +29,7 @@
 #include "common/cli.h"
 #include "common/delivery.h"
 #include "common/drill.h"
+#include "common/files.h"
 #include "common/watchdog.h"
 #include "launch/report.h"
 #include "common/lab_config.h"
@@ -334,7 +335,7 @@ int main(int argc, char** argv) {
     std::vector<const HandModel*> mp;
     std::vector<std::string> names;
     for (size_t c = 0; c < C; ++c) {
-      models[c] = HandModel::loadFile(lab.clusters[c].model);
+      models[c] = loadHandModel(lab.clusters[c].model);
       mp.push_back(&models[c]);
       names.push_back(lab.clusters[c].name);
     }

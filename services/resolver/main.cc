@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <map>
 
+#include "common/files.h"
 #include "runtime/trace_env.h"
 #include "model/hand_model.h"
 #include "runtime/convert.h"
@@ -53,7 +54,7 @@ int main(int argc, char** argv) {
   svc::traceFromEnvironment(&params);
   std::unique_ptr<Resolver> resolver;
   try {
-    for (size_t c = 0; c < C; ++c) models[c] = HandModel::loadFile(lab.clusters[c].model);
+    for (size_t c = 0; c < C; ++c) models[c] = loadHandModel(lab.clusters[c].model);
     for (const HandModel& m : models) model_ptrs.push_back(&m);
     scene = loadScene(service.sceneFile());
     params.step.dt = 1.0 / service.frameRate();

@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <map>
 
+#include "common/files.h"
 #include "runtime/trace_env.h"
 #include "physics/physics_world.h"
 #include "runtime/convert.h"

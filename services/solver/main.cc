@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <map>
 
+#include "common/files.h"
 #include "runtime/trace_env.h"
 #include "model/hand_model.h"
 #include "runtime/convert.h"
@@ -55,7 +56,7 @@ int main(int argc, char** argv) {
   svc::traceFromEnvironment(&params);
   std::unique_ptr<HandSolver> solver;
   try {
-    model = HandModel::loadFile(cluster->model);
+    model = loadHandModel(cluster->model);
     scene = loadScene(service.sceneFile());
     params.step.dt = 1.0 / service.frameRate();
     params.step.solver = solver_kind == "exact" ? SolverKind::Exact : SolverKind::Pgs;

@@ -10,6 +10,7 @@
 #include <mutex>
 
 #include "common/cli.h"
+#include "common/files.h"
 #include "common/lab_config.h"
 #include "common/signals.h"
 #include "dds/dds.h"
@@ -113,7 +114,7 @@ int main(int argc, char** argv) {
       if (c.name == synthetic) synthetic_hand = c.index;
     if (synthetic_hand < 0) cli.fail("--synthetic " + synthetic + ": no such cluster in " + lab.file);
     try {
-      synthetic_model = HandModel::loadFile(lab.clusters[static_cast<std::size_t>(synthetic_hand)].model);
+      synthetic_model = loadHandModel(lab.clusters[static_cast<std::size_t>(synthetic_hand)].model);
       synthetic_start = syntheticStart(loadScene(lab.scene));
       if (!lab.recording.empty()) synthetic_rate = svc::recordingFrameRate(lab.recording);
       if (!(synthetic_rate >= 1.0 && synthetic_rate <= 1000.0)) synthetic_rate = 60.0;  // no usable rate: 60 Hz
@@ -133,7 +134,7 @@ int main(int argc, char** argv) {
         std::vector<MeshSpec> specs;
         for (const std::string& m : meshes) specs.push_back(parseMeshSpec(m));
         const leap::Recording rec = leap::Recording::load(recording);
-        offline_scene = meshScene(specs, rec.meanPalmPosition());
+        offline_scene = meshScene(specs, rec.meanPalmPosition(), meshFileLoader());
         offline_scene_name = "--mesh";
       } else {
         offline_scene_name = scene_file.empty() ? lab.scene : scene_file;

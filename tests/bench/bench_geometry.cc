@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "common/files.h"
 #include "scene/mesh_io.h"
 #include "geometry/bvh.h"
 #include "geometry/sweep.h"

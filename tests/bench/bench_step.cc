@@ -16,6 +16,7 @@
 #include <cmath>
 #include <vector>
 
+#include "common/files.h"
 #include "model/hand_model.h"
 #include "step/cluster_step.h"
 
@@ -23,7 +24,7 @@ namespace {
 using namespace godhand;
 
 const HandModel& hand() {
-  static const HandModel model = HandModel::loadFile(GODHAND_MODELS_DIR "/hand16_right.pbtxt");
+  static const HandModel model = loadHandModel(GODHAND_MODELS_DIR "/hand16_right.pbtxt");
   return model;
 }
 

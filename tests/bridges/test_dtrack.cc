@@ -15,6 +15,7 @@
 #include <sstream>
 #include <thread>
 
+#include "common/files.h"
 #include "dtrack/dtrack.h"
 #include "leap/leap_recording.h"
 #include "leap/retarget.h"
@@ -265,10 +266,10 @@ TEST(DtrackVersusLeap, SameHandsAndTargetsAsTheLeapReader) {
     EXPECT_EQ(d.format, "dtrack");
     EXPECT_NEAR(d.mean_rate_hz, l.meanFrameRate(), 1e-6 * l.meanFrameRate()) << dt;
     EXPECT_LT((d.mean_palm_W - l.meanPalmPosition()).norm(), 1e-6) << dt;
-    const HandModel m16r = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
-    const HandModel m16l = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_left.pbtxt");
-    const HandModel m6r = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand6_right.pbtxt");
-    const HandModel m6l = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand6_left.pbtxt");
+    const HandModel m16r = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+    const HandModel m16l = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_left.pbtxt");
+    const HandModel m6r = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand6_right.pbtxt");
+    const HandModel m6l = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand6_left.pbtxt");
     const leap::Retargeter r16[2] = {leap::Retargeter(m16l), leap::Retargeter(m16r)};
     const leap::Retargeter r6[2] = {leap::Retargeter(m6l), leap::Retargeter(m6r)};
     double palm_p = 0, palm_q = 0, joint = 0, tgt_p = 0, tgt_q = 0, conf = 0;
@@ -337,7 +338,7 @@ TEST(DtrackMapping, ThreeFingerHandsOffsetAndYUp) {
     EXPECT_NEAR((t3.joints_W[4][static_cast<size_t>(k)] - t3.joints_W[2][static_cast<size_t>(k)] - 2 * step).norm(), 0.0, 1e-12);
   }
   // The 3-finger hand drives the 16-body model without degenerate segments.
-  const leap::Retargeter rt(HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt"));
+  const leap::Retargeter rt(loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt"));
   std::vector<Pose> tg;
   std::vector<unsigned char> dr;
   EXPECT_EQ(rt.targets(t3, &tg, &dr), 0);

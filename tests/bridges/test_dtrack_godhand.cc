@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <gtest/gtest.h>
 
+#include "common/files.h"
 #include "leap/leap_recording.h"
 #include "leap/retarget.h"
 #include "model/hand_model.h"
@@ -67,8 +68,8 @@ GodRun runPipeline(const std::vector<leap::TrackerFrame>& frames, double rate, c
 
 TEST(DtrackGodHands, SameGodHandsAsTheLeapRecordings) {
   const Scene scene = loadScene(std::string(GODHAND_DEPLOY_DIR) + "/scenes/default.pbtxt");
-  const HandModel right = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
-  const HandModel left = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_left.pbtxt");
+  const HandModel right = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  const HandModel left = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_left.pbtxt");
   for (const char* name : {"pinch", "confidence2-49fps"}) {
     const leap::Recording l = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/" + name + ".json");
     const bridges::LoadedRecording d = bridges::loadRecording(std::string(GODHAND_TEST_DATA_DIR) + "/dtrack/" + name + ".dtrack");

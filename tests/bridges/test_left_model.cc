@@ -12,6 +12,7 @@
 #include <random>
 #include <string>
 
+#include "common/files.h"
 #include "model/hand_model.h"
 
 namespace godhand {
@@ -54,10 +55,10 @@ void expectMirroredRest(const HandModel& right, const HandModel& left) {
 }
 
 TEST(LeftModel, LoadsAndIsTheMirrorImageAtRest) {
-  const HandModel r16 = HandModel::loadFile(modelPath("hand16_right.pbtxt"));
-  const HandModel l16 = HandModel::loadFile(modelPath("hand16_left.pbtxt"));
-  const HandModel r6 = HandModel::loadFile(modelPath("hand6_right.pbtxt"));
-  const HandModel l6 = HandModel::loadFile(modelPath("hand6_left.pbtxt"));
+  const HandModel r16 = loadHandModel(modelPath("hand16_right.pbtxt"));
+  const HandModel l16 = loadHandModel(modelPath("hand16_left.pbtxt"));
+  const HandModel r6 = loadHandModel(modelPath("hand6_right.pbtxt"));
+  const HandModel l6 = loadHandModel(modelPath("hand6_left.pbtxt"));
   EXPECT_EQ(l16.name, "hand16_left");
   EXPECT_EQ(l6.name, "hand6_left");
   EXPECT_EQ(l16.bodies.size(), 16u);
@@ -87,8 +88,8 @@ TEST(LeftModel, LoadsAndIsTheMirrorImageAtRest) {
 }
 
 TEST(LeftModel, SameFlexionGivesMirroredPoses) {
-  const HandModel r = HandModel::loadFile(modelPath("hand16_right.pbtxt"));
-  const HandModel l = HandModel::loadFile(modelPath("hand16_left.pbtxt"));
+  const HandModel r = loadHandModel(modelPath("hand16_right.pbtxt"));
+  const HandModel l = loadHandModel(modelPath("hand16_left.pbtxt"));
   std::mt19937 rng(3);
   std::uniform_real_distribution<double> u(0.0, 1.0);
   double worst = 0.0;
@@ -121,7 +122,7 @@ TEST(LeftModel, SameFlexionGivesMirroredPoses) {
 
 TEST(LeftModel, PositiveFlexionCurlsTowardThePalmInBothHands) {
   for (const char* file : {"hand16_right.pbtxt", "hand16_left.pbtxt"}) {
-    const HandModel m = HandModel::loadFile(modelPath(file));
+    const HandModel m = loadHandModel(modelPath(file));
     for (std::size_t k = 0; k < m.joints.size(); ++k) {
       const Joint& j = m.joints[k];
       std::vector<std::array<double, 2>> angles(m.joints.size(), {0.0, 0.0});

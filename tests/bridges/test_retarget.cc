@@ -17,6 +17,7 @@
 #include <sstream>
 #include <string>
 
+#include "common/files.h"
 #include "leap/leap_recording.h"
 #include "leap/retarget.h"
 
@@ -106,10 +107,10 @@ double lockViolation(const Joint& j, const Pose& X_WP, const Pose& X_WC) {
 struct Loaded {
   HandModel right16, left16, right6, left6;
   Loaded()
-      : right16(HandModel::loadFile(modelPath("hand16_right.pbtxt"))),
-        left16(HandModel::loadFile(modelPath("hand16_left.pbtxt"))),
-        right6(HandModel::loadFile(modelPath("hand6_right.pbtxt"))),
-        left6(HandModel::loadFile(modelPath("hand6_left.pbtxt"))) {}
+      : right16(loadHandModel(modelPath("hand16_right.pbtxt"))),
+        left16(loadHandModel(modelPath("hand16_left.pbtxt"))),
+        right6(loadHandModel(modelPath("hand6_right.pbtxt"))),
+        left6(loadHandModel(modelPath("hand6_left.pbtxt"))) {}
 };
 
 const Loaded& models() {
@@ -125,7 +126,7 @@ TEST(Retarget, ConstructorChecksSegmentNames) {
   EXPECT_FALSE(Retargeter(models().left16).modelIsRight().value());
   EXPECT_TRUE(Retargeter(models().right6).modelIsRight().value());
   EXPECT_FALSE(Retargeter(models().left6).modelIsRight().value());
-  const HandModel tool = HandModel::loadFile(modelPath("tool1.pbtxt"));
+  const HandModel tool = loadHandModel(modelPath("tool1.pbtxt"));
   try {
     Retargeter r(tool);
     ADD_FAILURE() << "tool1 accepted";

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 #include <sstream>
 
+#include "common/files.h"
 #include "leap/leap_recording.h"
 #include "leap/retarget.h"
 #include "leap/tool_target.h"
@@ -89,7 +90,7 @@ TEST(Skeleton, OpenXrFlatRightHandFollowsTheSpecConvention) {
   ASSERT_TRUE(handFromOpenXr(j, true, 1.0, 3, Pose(), &d, &why));
   EXPECT_NEAR(d.X_W_palm.q.angularDistance(h.X_W_palm.q), 0.0, 1e-9);
   // The 16-body right model takes it without degenerate segments.
-  const leap::Retargeter rt(HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt"));
+  const leap::Retargeter rt(loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt"));
   std::vector<Pose> tg;
   std::vector<unsigned char> dr;
   EXPECT_EQ(rt.targets(h, &tg, &dr), 0);
@@ -177,8 +178,8 @@ TEST(Skeleton, OpenXrAndMediaPipeRecordingsGiveTheLeapHands) {
   }
   EXPECT_EQ(bridges::detectFormat(xr), "openxr");
   EXPECT_EQ(bridges::detectFormat(mp), "mediapipe");
-  const HandModel m16r = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
-  const HandModel m16l = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_left.pbtxt");
+  const HandModel m16r = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  const HandModel m16l = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_left.pbtxt");
   const leap::Retargeter rt[2] = {leap::Retargeter(m16l), leap::Retargeter(m16r)};
   for (const std::string& file : {xr, mp}) {
     const bridges::LoadedRecording r = bridges::loadRecording(file);
@@ -271,7 +272,7 @@ TEST(Skeleton, OpenXrBodyDrivesTheToolModel) {
                              "body: NaN/Inf 1", "body: parse error 1"})
     EXPECT_NE(r.summary().find(reason), std::string::npos) << reason << " in " << r.summary();
   // The tool model rides it: its one God object at its rest pose in the body's frame.
-  const HandModel tool = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/tool1.pbtxt");
+  const HandModel tool = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/tool1.pbtxt");
   ASSERT_TRUE(leap::isToolModel(tool));
   std::vector<Pose> targets;
   std::vector<unsigned char> has;

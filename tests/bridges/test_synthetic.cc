@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 #include <sstream>
 
+#include "common/files.h"
 #include "leap/retarget.h"
 #include "model/hand_model.h"
 #include "physics/physics_world.h"
@@ -68,7 +69,7 @@ TEST(Synthetic, DeterministicAndKilohertz) {
   EXPECT_NEAR((bridges::handOfSide(last, true)->X_W_palm.p - Vec3(0.15, 0, 0.25)).norm(), 0.0, 1e-12);
   EXPECT_NEAR((bridges::handOfSide(last, false)->X_W_palm.p - Vec3(-0.15, 0, 0.25)).norm(), 0.0, 1e-12);
   for (const char* m : {"hand16_right", "hand6_right"}) {
-    const leap::Retargeter rt(HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/" + m + ".pbtxt"));
+    const leap::Retargeter rt(loadHandModel(std::string(GODHAND_MODELS_DIR) + "/" + m + ".pbtxt"));
     std::vector<Pose> t;
     std::vector<unsigned char> d;
     EXPECT_EQ(rt.targets(*bridges::handOfSide(last, true), &t, &d), 0) << m;
@@ -77,7 +78,7 @@ TEST(Synthetic, DeterministicAndKilohertz) {
 
 TEST(Synthetic, PressSlideLiftDropoutTeleportNanThroughThePipeline) {
   const Scene scene = loadScene(dataPath("table.pbtxt"));
-  const HandModel right = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  const HandModel right = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
   const bridges::LoadedRecording rec = bridges::loadRecording(dataPath("press_slide_lift.txt"));
   std::printf("[info] %s\n", rec.rejections.c_str());
   EXPECT_NE(rec.rejections.find("NaN/Inf 5"), std::string::npos) << rec.rejections;

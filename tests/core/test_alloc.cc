@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "common/files.h"
 #include "model/hand_model.h"
 #include "step/cluster_step.h"
 
@@ -150,7 +151,7 @@ TEST(StepAlloc, CounterSeesMallocAndNew) {
 #endif
 
 const HandModel& hand16() {
-  static const HandModel m = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  static const HandModel m = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
   return m;
 }
 

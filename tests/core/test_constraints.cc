@@ -28,6 +28,7 @@
 #include <string>
 #include <vector>
 
+#include "common/files.h"
 #include "model/hand_model.h"
 #include "solver/qp.h"
 #include "step/constraints.h"
@@ -161,7 +162,7 @@ double fdDiscrepancy(const Row& row, const RowFunction& C, const Poses& X) {
 // Models and configurations.
 
 const HandModel& hand16() {
-  static const HandModel m = HandModel::loadFile(GODHAND_MODELS_DIR "/hand16_right.pbtxt");
+  static const HandModel m = loadHandModel(GODHAND_MODELS_DIR "/hand16_right.pbtxt");
   return m;
 }
 

@@ -12,6 +12,7 @@
 #include <random>
 #include <string>
 
+#include "common/files.h"
 #include "model/hand_model.h"
 
 namespace godhand {
@@ -28,7 +29,7 @@ Quat rotY(double a) { return Quat(Eigen::AngleAxisd(a, Vec3::UnitY())); }
 // Shipped models
 
 TEST(ModelShipped, Hand16LoadsWithExpectedStructure) {
-  const HandModel m = HandModel::loadFile(modelPath("hand16_right.pbtxt"));
+  const HandModel m = loadHandModel(modelPath("hand16_right.pbtxt"));
   EXPECT_EQ(m.name, "hand16_right");
   ASSERT_EQ(m.bodies.size(), 16u);
   ASSERT_EQ(m.joints.size(), 15u);
@@ -61,14 +62,14 @@ TEST(ModelShipped, Hand16LoadsWithExpectedStructure) {
 }
 
 TEST(ModelShipped, Hand6AndTool1Load) {
-  const HandModel h6 = HandModel::loadFile(modelPath("hand6_right.pbtxt"));
+  const HandModel h6 = loadHandModel(modelPath("hand6_right.pbtxt"));
   EXPECT_EQ(h6.bodies.size(), 6u);
   EXPECT_TRUE(h6.joints.empty());
   EXPECT_EQ(h6.equalityRows(), 0);
   EXPECT_EQ(h6.bodies[0].shape.type, ShapeType::Box);
   for (size_t i = 1; i < 6; ++i) EXPECT_EQ(h6.bodies[i].shape.type, ShapeType::Sphere);
 
-  const HandModel tool = HandModel::loadFile(modelPath("tool1.pbtxt"));
+  const HandModel tool = loadHandModel(modelPath("tool1.pbtxt"));
   ASSERT_EQ(tool.bodies.size(), 1u);
   EXPECT_TRUE(tool.joints.empty());
   EXPECT_EQ(tool.bodies[0].shape.type, ShapeType::Box);
@@ -77,7 +78,7 @@ TEST(ModelShipped, Hand6AndTool1Load) {
 }
 
 TEST(ModelShipped, RestPosesComposeWithModelFrame) {
-  const HandModel m = HandModel::loadFile(modelPath("hand16_right.pbtxt"));
+  const HandModel m = loadHandModel(modelPath("hand16_right.pbtxt"));
   Pose X_WM;
   X_WM.p = Vec3(0.3, -0.2, 1.1);
   X_WM.q = Quat(Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()));
@@ -382,8 +383,8 @@ TEST(ModelErrors, NoBodies) {
 TEST(ModelErrors, MissingFile) {
   const std::string path = "/nonexistent/dir/missing_model.pbtxt";
   try {
-    HandModel::loadFile(path);
-    FAIL() << "loadFile accepted a missing file";
+    loadHandModel(path);
+    FAIL() << "loadHandModel accepted a missing file";
   } catch (const ModelError& e) {
     const std::string msg = e.what();
     EXPECT_EQ(msg.rfind(path, 0), 0u) << msg;
@@ -392,7 +393,7 @@ TEST(ModelErrors, MissingFile) {
 }
 
 TEST(ModelErrors, LoadFileReportsPathInParseErrors) {
-  // A shipped file is parsed through loadFile with its own path as the source.
+  // A model file is parsed through loadHandModel with its own path as the source.
   const std::string path = ::testing::TempDir() + "godhand_bad_model.pbtxt";
   const std::string text = replaced(kGood, "  mass: 0.05\n", "  mass: -0.05\n");
   {
@@ -402,7 +403,7 @@ TEST(ModelErrors, LoadFileReportsPathInParseErrors) {
     std::fclose(f);
   }
   try {
-    HandModel::loadFile(path);
+    loadHandModel(path);
     FAIL() << "accepted";
   } catch (const ModelError& e) {
     EXPECT_EQ(std::string(e.what()).rfind(path + ":" + std::to_string(lineOf(text, "mass: -0.05")) + ":", 0), 0u) << e.what();
@@ -426,7 +427,7 @@ Pose childPose(const Joint& j, const Pose& X_WP, double t1, double t2) {
 }
 
 TEST(ModelJointAngles, RecoverKnownFlexionAndAbduction) {
-  const HandModel m = HandModel::loadFile(modelPath("hand16_right.pbtxt"));
+  const HandModel m = loadHandModel(modelPath("hand16_right.pbtxt"));
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   double worst = 0.0, worst_gap = 0.0;
@@ -449,7 +450,7 @@ TEST(ModelJointAngles, RecoverKnownFlexionAndAbduction) {
 }
 
 TEST(ModelJointAngles, RevoluteIgnoresNothingAndGapIsAnchorDistance) {
-  const HandModel m = HandModel::loadFile(modelPath("hand16_right.pbtxt"));
+  const HandModel m = loadHandModel(modelPath("hand16_right.pbtxt"));
   const Joint& j = m.joints[1];  // thumb.mcp, revolute
   ASSERT_EQ(j.type, JointType::Revolute);
   const Pose X_WP = m.restPoses(Pose{})[static_cast<size_t>(j.parent)];

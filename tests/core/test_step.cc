@@ -23,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "common/files.h"
 #include "model/hand_model.h"
 #include "step/cluster_step.h"
 
@@ -38,11 +39,11 @@ void figure(const char* name, double value) {
 }
 
 const HandModel& hand16() {
-  static const HandModel m = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  static const HandModel m = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
   return m;
 }
 const HandModel& tool1() {
-  static const HandModel m = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/tool1.pbtxt");
+  static const HandModel m = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/tool1.pbtxt");
   return m;
 }
 const HandModel& ball() {

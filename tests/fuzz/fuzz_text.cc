@@ -3,8 +3,9 @@
 // picks the file kind (0: scene, 1: lab, 2: hand model, 3: sweep grid). A bad file is one error
 // line (SceneError, MeshError, SweepSpecError, LabError or ModelError), never a crash, a hang or
 // a half-checked result: a parsed scene has finite placements, unit orientations and masses
-// >= 0; a parsed model has finite rest poses. Mesh files a scene names are looked up in a
-// directory that does not exist (a clear error).
+// >= 0; a parsed model has finite rest poses. Mesh files a scene names are looked up (through
+// the programs' loader, services/common/files.cc) in a directory that does not exist (a clear
+// error).
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -12,6 +13,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/files.h"
 #include "common/lab_config.h"
 #include "common/sweep_spec.h"
 #include "model/hand_model.h"
@@ -44,7 +46,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   const std::string text(reinterpret_cast<const char*>(data + 1), size - 1);
   try {
     switch (data[0] % 4) {
-      case 0: checkScene(godhand::parseScene(text, "fuzz.pbtxt", "/nonexistent-godhand-fuzz")); break;
+      case 0: checkScene(godhand::parseScene(text, "fuzz.pbtxt", "/nonexistent-godhand-fuzz", godhand::meshFileLoader())); break;
       case 1: godhand::parseLab(text, "fuzz.pbtxt", "/nonexistent-godhand-fuzz"); break;
       case 2: checkModel(godhand::HandModel::fromText(text, "fuzz.pbtxt")); break;
       default: godhand::sweepSpecJson(godhand::parseSweepSpec(text, "fuzz.pbtxt")); break;

@@ -12,6 +12,7 @@
 #include <sstream>
 #include <string>
 
+#include "common/files.h"
 #include "scene/mesh_io.h"
 #include "geometry/bvh.h"
 

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "common/files.h"
 #include "geometry/bvh.h"
 #include "leap/leap_recording.h"
 #include "leap/retarget.h"
@@ -174,7 +175,7 @@ TEST(Plausibility, LiftsOffWhileRotatingWithinOneFrame) {
 // freely: those bodies follow their targets as the free twin does (within 1 mm; the finger
 // flexes to keep its tip out, within its joint range), the blocked tip stays outside both plates.
 TEST(Plausibility, FingertipInACreaseDoesNotHoldTheRestOfTheHand) {
-  const HandModel hand = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  const HandModel hand = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
   int tip = -1;
   for (size_t b = 0; b < hand.bodies.size(); ++b)
     if (hand.bodies[b].name == "index.3") tip = static_cast<int>(b);
@@ -237,7 +238,7 @@ TEST(Plausibility, FingertipInACreaseDoesNotHoldTheRestOfTheHand) {
 // model and targets, empty scene) and the hand's own motion; penetration exact.
 TEST(Plausibility, APhalanxOnACreaseDoesNotHoldTheHandStill) {
   const leap::Recording rec = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/confidence2-49fps.json");
-  const HandModel hand = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  const HandModel hand = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
   Scene scene = loadScene(std::string(GODHAND_DEPLOY_DIR) + "/scenes/default.pbtxt");
   bool moved = false;
   for (SceneObject& o : scene.objects)

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "common/files.h"
 #include "leap/leap_recording.h"
 #include "leap/retarget.h"
 #include "math/stats.h"
@@ -160,8 +161,8 @@ TEST(Convert, ForcesAndSceneRoundTrip) {
 TEST(Convert, StagesThroughTheWireEqualThePipeline) {
   const leap::Recording rec = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/confidence2-49fps.json");
   const Scene scene = loadScene(std::string(GODHAND_DEPLOY_DIR) + "/scenes/default.pbtxt");
-  const HandModel right = HandModel::loadFile(std::string(GODHAND_DEPLOY_DIR) + "/models/hand16_right.pbtxt");
-  const HandModel left = HandModel::loadFile(std::string(GODHAND_DEPLOY_DIR) + "/models/hand16_left.pbtxt");
+  const HandModel right = loadHandModel(std::string(GODHAND_DEPLOY_DIR) + "/models/hand16_right.pbtxt");
+  const HandModel left = loadHandModel(std::string(GODHAND_DEPLOY_DIR) + "/models/hand16_left.pbtxt");
   const std::vector<const HandModel*> models = {&right, &left};
   const double rate = rec.meanFrameRate();
   PipelineParams params;
@@ -252,7 +253,7 @@ TEST(Convert, StagesThroughTheWireEqualThePipeline) {
 
 TEST(Convert, ResumeContinuesFromTheResolvedPose) {
   const Scene scene = loadScene(std::string(GODHAND_DEPLOY_DIR) + "/scenes/default.pbtxt");
-  const HandModel right = HandModel::loadFile(std::string(GODHAND_DEPLOY_DIR) + "/models/hand16_right.pbtxt");
+  const HandModel right = loadHandModel(std::string(GODHAND_DEPLOY_DIR) + "/models/hand16_right.pbtxt");
   PipelineParams params;
   params.step.dt = 0.01;
   HandSolver solver(scene, right, params);

@@ -13,6 +13,7 @@
 
 #include <unistd.h>
 
+#include "common/files.h"
 #include "geometry/distance.h"
 #include "scene/mesh_io.h"
 
@@ -187,6 +188,38 @@ TEST(Obj, ErrorsAreOneLineWithFileAndLine) {
   expectLocated(loadError(p), p, "0", "cannot open mesh file");
   p = tmp.write("mesh.ply", "ply\n");
   expectLocated(loadError(p), p, "0", "unsupported mesh format");
+}
+
+TEST(MeshFile, CoreParsesBytesTheProgramsReadTheFile) {
+  // core opens no files: parseMeshFile takes the bytes, the name only picks the format (any
+  // case) and names the mesh in errors; loadMeshFile (services/common/files.h) reads the file.
+  const std::string stl = binaryStl("binary", tetra());
+  MeshStats st;
+  EXPECT_EQ(parseMeshFile(stl, "in/memory.STL", &st).triangleCount(), 4);
+  EXPECT_EQ(st.input_triangles, 4);
+  EXPECT_EQ(parseMeshFile("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "t.Obj").triangleCount(), 1);
+  EXPECT_EQ(meshFormat("a/b.STL"), ".stl");
+  auto parseError = [](const std::string& bytes, const std::string& name) -> std::string {
+    try {
+      parseMeshFile(bytes, name);
+    } catch (const MeshError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_EQ(parseError(stl, "t.ply"), "t.ply:0: unsupported mesh format '.ply' (expected .obj or .stl)");
+  EXPECT_EQ(parseError("v 0 0 0\nf 1 2 3\n", "mem/x.obj").rfind("mem/x.obj:2: ", 0), 0u);
+
+  // The file side keeps its order: a missing file is missing whatever its name, a directory is
+  // not a regular file, then the name's format, then the bytes.
+  TempDir tmp;
+  const std::string dir = fs::path(tmp.write("m.stl", stl)).parent_path().string();
+  fs::create_directories(dir + "/d.obj");
+  EXPECT_EQ(loadError(dir + "/none.ply"), dir + "/none.ply:0: cannot open mesh file: no such file");
+  EXPECT_EQ(loadError(dir + "/d.obj"), dir + "/d.obj:0: cannot open mesh file: not a regular file");
+  const std::string ply = tmp.write("m.ply", "ply\n");
+  EXPECT_EQ(loadError(ply), ply + ":0: unsupported mesh format '.ply' (expected .obj or .stl)");
+  EXPECT_EQ(loadMeshFile(dir + "/m.stl").triangleCount(), 4);
 }
 
 // ------------------------------------------------------------------------------------- STL

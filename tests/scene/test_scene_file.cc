@@ -11,6 +11,7 @@
 
 #include <unistd.h>
 
+#include "common/files.h"
 #include "geometry/bvh.h"
 #include "scene/mesh_io.h"
 #include "scene/scene_file.h"
@@ -231,6 +232,35 @@ TEST(SceneFile, CommittedBadSceneReportsItsLine) {
   }
 }
 
+TEST(SceneFile, MeshesComeThroughTheLoaderOnly) {
+  // core opens no files: parseScene gets its meshes from the MeshLoader it is given, once per
+  // path (joined to base_dir, lexically normal), and a loader's MeshError carries the scene
+  // location as the file loader's does.
+  std::map<std::string, int> calls;
+  const MeshLoader memory = [&](const std::string& path) {
+    ++calls[path];
+    if (path != "/virtual/meshes/cube.obj") throw MeshError(path + ":0: cannot open mesh file: no such file");
+    return parseMeshFile(kCubeObj, path);
+  };
+  const Scene s = parseScene("objects { id: \"a\" mesh: \"meshes/cube.obj\" }\n"
+                             "objects { id: \"b\" mesh: \"./meshes/../meshes/cube.obj\" scale: 2 }\n"
+                             "objects { id: \"c\" mesh: \"/virtual/meshes/cube.obj\" }\n",
+                             "mem.pbtxt", "/virtual", memory);
+  ASSERT_EQ(s.objects.size(), 3u);
+  EXPECT_EQ(s.name, "mem");
+  EXPECT_EQ(calls, (std::map<std::string, int>{{"/virtual/meshes/cube.obj", 1}}));
+  EXPECT_EQ(byId(s, "a").source, "/virtual/meshes/cube.obj");
+  EXPECT_EQ(byId(s, "a").god, byId(s, "c").god);  // same path and scale: one BVH
+  EXPECT_NE(byId(s, "a").god, byId(s, "b").god);
+  EXPECT_EQ(byId(s, "b").god->bounds().hi, Vec3(2, 2, 2));
+  try {
+    parseScene("objects {\n  id: \"m\"\n  mesh: \"gone.obj\"\n}\n", "mem.pbtxt", "/virtual", memory);
+    ADD_FAILURE() << "no error";
+  } catch (const SceneError& e) {
+    EXPECT_EQ(std::string(e.what()), "mem.pbtxt:3: objects[0].mesh: /virtual/gone.obj:0: cannot open mesh file: no such file");
+  }
+}
+
 TEST(ShippedScenes, DefaultSceneLoadsWithAbout100kTriangles) {
   const auto t0 = std::chrono::steady_clock::now();
   const Scene s = loadScene(std::string(GODHAND_DEPLOY_DIR) + "/scenes/default.pbtxt");
@@ -304,7 +334,8 @@ TEST(MeshScene, ScalesAndCentresExactly) {
   const std::string bunny = std::string(GODHAND_DEPLOY_DIR) + "/meshes/stanford-bunny.obj";
   const std::string fandisk = std::string(GODHAND_DEPLOY_DIR) + "/meshes/fandisk.obj";
   const Vec3 centre(0.1, -0.2, 0.3);
-  const Scene s = meshScene({parseMeshSpec(bunny + ":0.2"), parseMeshSpec(bunny + ":0.2"), parseMeshSpec(fandisk)}, centre);
+  const Scene s = meshScene({parseMeshSpec(bunny + ":0.2"), parseMeshSpec(bunny + ":0.2"), parseMeshSpec(fandisk)}, centre,
+                            meshFileLoader());
   ASSERT_EQ(s.objects.size(), 3u);
   EXPECT_EQ(s.objects[0].id, "stanford-bunny");
   EXPECT_EQ(s.objects[1].id, "stanford-bunny_2");
@@ -328,7 +359,7 @@ TEST(MeshScene, ScalesAndCentresExactly) {
   }
   EXPECT_EQ(s.god_triangles, 2LL * s.objects[0].god->triangleCount() + s.objects[2].god->triangleCount());
   try {
-    meshScene({parseMeshSpec("/nonexistent/x.obj:0.1")}, centre);
+    meshScene({parseMeshSpec("/nonexistent/x.obj:0.1")}, centre, meshFileLoader());
     ADD_FAILURE() << "no error";
   } catch (const SceneError& e) {
     EXPECT_EQ(std::string(e.what()).rfind("/nonexistent/x.obj:0: cannot open mesh file", 0), 0u) << e.what();
@@ -356,7 +387,7 @@ TEST(MeshScene, GodFidelityChangesTheGodSideOnly) {
   MeshSpec full = parseMeshSpec(fandisk + ":0.2"), dec = full, hull = full;
   dec.god = parseGodFidelity("decimated:1000");
   hull.god = parseGodFidelity("hull");
-  const Scene s = meshScene({full, dec, hull}, centre);
+  const Scene s = meshScene({full, dec, hull}, centre, meshFileLoader());
   ASSERT_EQ(s.objects.size(), 3u);
   const geo::MeshBvh& ref = *s.objects[0].reference;
   for (const SceneObject& o : s.objects) {

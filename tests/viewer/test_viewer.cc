@@ -7,6 +7,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 
+#include "common/files.h"
 #include "viewer/encode.h"
 #include "viewer/feed.h"
 #include "viewer/offline.h"
@@ -275,7 +276,7 @@ TEST(ViewerSynthetic, CommandsAreParsedStrictly) {
 }
 
 TEST(ViewerSynthetic, TargetIsTheModelAtRestAtTheCommandedFrame) {
-  const HandModel model = HandModel::loadFile(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  const HandModel model = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
   Pose X;
   X.p = Vec3(0.1, 0.2, 0.3);
   msg::HandTarget t;

@@ -1,0 +1,54 @@
+#include "common/files.h"
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <sstream>
+
+namespace godhand {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+[[noreturn]] void meshFail(const std::string& path, const std::string& reason) {
+  throw MeshError(path + ":0: " + reason);
+}
+
+}  // namespace
+
+HandModel loadHandModel(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw ModelError(path + ": cannot open model file");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return HandModel::fromText(ss.str(), path);
+}
+
+geo::TriangleMesh loadMeshFile(const std::string& path, MeshStats* stats) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) meshFail(path, "cannot open mesh file: no such file");
+  if (!fs::is_regular_file(path, ec)) meshFail(path, "cannot open mesh file: not a regular file");
+  meshFormat(path);  // a name that is neither .obj nor .stl is refused before the file is read
+  std::ifstream in(path, std::ios::binary);
+  if (!in) meshFail(path, std::string("cannot open mesh file: ") + std::strerror(errno));
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) meshFail(path, "read error");
+  return parseMeshFile(bytes, path, stats);
+}
+
+MeshLoader meshFileLoader() {
+  return [](const std::string& path) { return loadMeshFile(path); };
+}
+
+Scene loadScene(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in || fs::is_directory(path)) throw SceneError(path + ":0: cannot open scene file");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return parseScene(ss.str(), path, fs::path(path).parent_path().string(), meshFileLoader());
+}
+
+}  // namespace godhand
