@@ -21,7 +21,8 @@ namespace fs = std::filesystem;
 
 HandModel loadHandModel(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
-  if (!in) throw ModelError(path + ": cannot open model file");
+  std::error_code ec;  // a directory opens as an empty stream: refused by name, not as "no bodies"
+  if (!in || fs::is_directory(path, ec)) throw ModelError(path + ": cannot open model file");
   std::ostringstream ss;
   ss << in.rdbuf();
   return HandModel::fromText(ss.str(), path);

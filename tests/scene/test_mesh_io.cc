@@ -222,6 +222,21 @@ TEST(MeshFile, CoreParsesBytesTheProgramsReadTheFile) {
   EXPECT_EQ(loadMeshFile(dir + "/m.stl").triangleCount(), 4);
 }
 
+TEST(ModelFile, MissingFileOrDirectoryIsNamed) {
+  TempDir tmp;
+  const std::string dir = fs::path(tmp.write("x.txt", "")).parent_path().string();
+  auto modelError = [](const std::string& path) -> std::string {
+    try {
+      loadHandModel(path);
+    } catch (const ModelError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_EQ(modelError(dir), dir + ": cannot open model file");
+  EXPECT_EQ(modelError(dir + "/none.pbtxt"), dir + "/none.pbtxt: cannot open model file");
+}
+
 // ------------------------------------------------------------------------------------- STL
 
 TEST(Stl, BinaryStartingWithSolidIsReadAsBinaryAndWelded) {
