@@ -1,5 +1,6 @@
 #include "pipeline/pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <stdexcept>
 
@@ -33,6 +34,14 @@ Pipeline::Pipeline(const Scene& scene, std::vector<const HandModel*> hands, Pipe
   resolver_->setScene(s0);
   proposals_.resize(models_.size());
   report_.hands.resize(models_.size());
+  // The hands' solvers share nothing but the read-only scene (each has its own collision world,
+  // stepper and scratch), so they may run at once; the resolver merges them after.
+  const int threads = params_.trace > 0 ? 1 : std::min(params_.threads, static_cast<int>(models_.size()));
+  workers_ = std::make_unique<Workers>(std::max(1, threads));
+  solve_hand_ = [this](int h) {
+    const size_t i = static_cast<size_t>(h);
+    proposals_[i] = &solvers_[i]->step(*inputs_[i], frame_);
+  };
 }
 
 Pipeline::~Pipeline() = default;
@@ -44,7 +53,10 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
   report_.times = PipelineTimes{};
   report_.contacts = 0;
   // solvers
-  for (size_t h = 0; h < solvers_.size(); ++h) proposals_[h] = &solvers_[h]->step(inputs[h], frame);
+  inputs_.resize(inputs.size());
+  for (size_t h = 0; h < inputs.size(); ++h) inputs_[h] = &inputs[h];
+  frame_ = frame;
+  workers_->run(static_cast<int>(solvers_.size()), solve_hand_);
   // resolver
   resolver_->resolve(proposals_, frame);
   for (size_t h = 0; h < solvers_.size(); ++h) solvers_[h]->adopt(resolver_->result(static_cast<int>(h)));

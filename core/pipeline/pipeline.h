@@ -37,6 +37,7 @@
 #include "scene/scene.h"
 #include "step/cluster_step.h"
 #include "pipeline/stages.h"
+#include "pipeline/workers.h"
 
 namespace godhand {
 
@@ -115,6 +116,10 @@ class Pipeline {
   std::vector<std::unique_ptr<HandSolver>> solvers_;
   std::unique_ptr<Resolver> resolver_;
   std::unique_ptr<SceneStage> scene_stage_;
+  std::unique_ptr<Workers> workers_;
+  std::vector<const HandInput*> inputs_;
+  std::uint64_t frame_ = 0;
+  std::function<void(int)> solve_hand_;
   std::vector<const HandProposal*> proposals_;
   FrameReport report_;
   PipelineCounters counters_;

@@ -72,6 +72,7 @@ void PipelineParams::validate() const {
   require(finiteNonNeg(start_clearance), "start_clearance must be >= 0");
   require(std::isfinite(max_start_shift) && max_start_shift > 0.0, "max_start_shift must be > 0");
   require(std::isfinite(stuck_rotation) && stuck_rotation >= 0.0, "stuck_rotation must be >= 0 (0 = off)");
+  require(threads >= 1 && threads <= 64, "threads must be in [1, 64]");
 }
 
 PhysicsParams physicsParamsFor(double frame_rate, double physics_hz) {

@@ -81,6 +81,10 @@ struct PipelineParams {
   /// is refused, round after round (seen: a pinky phalanx at a fandisk crease turned 0.55 rad per
   /// step and held the hand still while its targets moved 15 cm on).
   double stuck_rotation = 0.05;
+  /// Threads the Pipeline steps its hands' solvers on (1: one after the other on the caller's
+  /// thread). The results are the same for every count; with trace on, the solvers run on the
+  /// caller's thread so that the lines keep their order.
+  int threads = 1;
 
   void validate() const;              ///< throws std::invalid_argument naming the field
 };

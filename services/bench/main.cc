@@ -44,8 +44,8 @@ using namespace godhand;
 const char* kUsage =
     "usage: godhand-bench --recording FILE [--scene FILE|none | --mesh FILE[:SIZE_M] ...]\n"
     "                     [--hand-model FILE] [--left-hand-model FILE] [--tool MODEL:BODY] [--solver exact|pgs]\n"
-    "                     [--pgs-iterations N] [--substeps N] [--frames N] [--no-physics] [--json OUT]\n"
-    "                     [--poses OUT.csv] [--tracker-pose POSE] [--hand-sides MAP] [--quiet] [--check]\n"
+    "                     [--pgs-iterations N] [--substeps N] [--threads N] [--frames N] [--no-physics]\n"
+    "                     [--json OUT] [--poses OUT.csv] [--tracker-pose POSE] [--hand-sides MAP] [--quiet] [--check]\n"
     "       godhand-bench --sweep GRID.pbtxt --recording FILE [--scene FILE|none | --mesh FILE[:SIZE_M] ...]\n"
     "                     [--frames N] [--json OUT] [--plot OUT.png|svg] [--target BOUNDS]\n"
     "\n"
@@ -78,6 +78,8 @@ const char* kUsage =
     "  --poses OUT.csv       write every God object's world pose every frame, and its target's\n"
     "                        (columns tpx..tqz, empty when the body has no target that frame)\n"
     "  --substeps N          solve -> sweep rounds per frame (default 2)\n"
+    "  --threads N           threads the hands' solvers run on at once (default: the hands, at most the\n"
+    "                        cores; 1: one after the other). The results are the same for every N\n"
     "  --stuck-rotation RAD  a body whose last sweep hit at once may turn at most RAD in its next step\n"
     "                        (default 0.05; 0 = no cap)\n"
     "  --contact-rotation R  most a body within 5 mm of a contact turns per frame, rad\n"
@@ -113,6 +115,7 @@ struct Args {
   long frames = -1;
   int physics_hz = 240;
   int substeps = PipelineParams{}.max_substeps;
+  int threads = 0;  // 0: min(hands, cores)
   double stuck_rotation = PipelineParams{}.stuck_rotation;
   double contact_rotation = PipelineParams{}.step.max_step_rotation_in_contact;
   double max_rotation = PipelineParams{}.step.max_step_rotation;
@@ -198,6 +201,7 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--physics-hz") a.physics_hz = static_cast<int>(parseCount(f, value(), 10, 100000));
     else if (f == "--quiet") a.quiet = true;
     else if (f == "--substeps") a.substeps = static_cast<int>(parseCount(f, value(), 1, 64));
+    else if (f == "--threads") a.threads = static_cast<int>(parseCount(f, value(), 1, 64));
     else if (f == "--stuck-rotation") a.stuck_rotation = parseDouble(f, value(), 0.0, 10.0);
     else if (f == "--check") a.check = true;
     else fail("unknown argument '" + f + "' (see --help)");
@@ -333,6 +337,8 @@ int main(int argc, char** argv) {
   params.sweep.max_iterations = args.sweep_iterations;
   params.step.rows.margin = args.contact_margin;
   params.step.rows.contact_beta = args.push_out;
+  const int cores = std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  params.threads = args.threads > 0 ? args.threads : std::max(1, std::min(static_cast<int>(models.size()), cores));
   std::unique_ptr<Pipeline> pipe;
   std::unique_ptr<RunMetrics> metrics;
   std::vector<std::unique_ptr<leap::Retargeter>> retarget;  // per cluster; none for a tool
@@ -454,8 +460,10 @@ int main(int argc, char** argv) {
                   o.X_WO.p.y(), o.X_WO.p.z());
   for (const SceneObject& o : scene.objects)
     if (!o.god_note.empty()) std::printf("  God side of %s: %s\n", o.id.c_str(), o.god_note.c_str());
-  std::printf("  step (the in-process frame, every hand and the scene): median %.1f us (%.0f Hz), p99 %.1f us, max %.1f us\n",
-              median, hz, percentile(step_us, 0.99), percentile(step_us, 1.0));
+  std::printf("  step (the in-process frame, every hand and the scene; hands' solvers on %d thread%s): median %.1f us (%.0f Hz), "
+              "p99 %.1f us, max %.1f us\n",
+              pipe->params().threads, pipe->params().threads == 1 ? "" : "s", median, hz, percentile(step_us, 0.99),
+              percentile(step_us, 1.0));
   std::printf("  stages (median us): contacts %.1f, assembly %.1f, solve %.1f, integrate %.1f, ccd %.1f, merge %.1f, scene %.1f\n",
               percentile(st_contacts, 0.5), percentile(st_assembly, 0.5), percentile(st_solve, 0.5),
               percentile(st_integrate, 0.5), percentile(st_ccd, 0.5), percentile(st_merge, 0.5), percentile(st_scene, 0.5));
@@ -497,6 +505,7 @@ int main(int argc, char** argv) {
     j["solver"] = args.solver == SolverKind::Exact ? "exact" : "pgs";
     j["physics_hz"] = args.physics ? args.physics_hz : 0;
     j["max_substeps"] = args.substeps;
+    j["threads"] = params.threads;
     j["step_us"] = {{"median", median}, {"p99", percentile(step_us, 0.99)}, {"max", percentile(step_us, 1.0)}};
     j["hz_median"] = hz;
     j["stages_us"] = {{"contacts", percentile(st_contacts, 0.5)}, {"assembly", percentile(st_assembly, 0.5)},

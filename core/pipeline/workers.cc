@@ -1,0 +1,82 @@
+#include "pipeline/workers.h"
+
+#include <stdexcept>
+
+namespace godhand {
+
+Workers::Workers(int threads) {
+  if (threads < 1 || threads > 64) throw std::invalid_argument("threads must be in [1, 64]");
+  threads_.reserve(static_cast<size_t>(threads - 1));
+  for (int t = 1; t < threads; ++t) threads_.emplace_back([this] { loop(); });
+}
+
+Workers::~Workers() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  start_.notify_all();
+  for (std::thread& t : threads_) t.join();
+}
+
+// Takes jobs until none is left; called and returns with the lock held.
+void Workers::drain(std::unique_lock<std::mutex>& lock) {
+  while (next_ < n_) {
+    const int i = next_++;
+    ++running_;
+    lock.unlock();
+    std::exception_ptr e;
+    try {
+      (*job_)(i);
+    } catch (...) {
+      e = std::current_exception();
+    }
+    lock.lock();
+    if (e && !error_) error_ = e;
+    if (--running_ == 0 && next_ >= n_) done_.notify_all();
+  }
+}
+
+void Workers::loop() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  std::uint64_t seen = 0;  // a thread that starts late still joins the first run
+  for (;;) {
+    start_.wait(lock, [&] { return stop_ || generation_ != seen; });
+    if (stop_) return;
+    seen = generation_;
+    drain(lock);
+  }
+}
+
+void Workers::run(int n, const std::function<void(int)>& job) {
+  if (n <= 0) return;
+  if (threads_.empty() || n == 1) {
+    std::exception_ptr first;
+    for (int i = 0; i < n; ++i) {
+      try {
+        job(i);
+      } catch (...) {
+        if (!first) first = std::current_exception();
+      }
+    }
+    if (first) std::rethrow_exception(first);
+    return;
+  }
+  std::unique_lock<std::mutex> lock(mutex_);
+  job_ = &job;
+  n_ = n;
+  next_ = 0;
+  error_ = nullptr;
+  ++generation_;
+  start_.notify_all();
+  drain(lock);
+  done_.wait(lock, [&] { return running_ == 0 && next_ >= n_; });
+  job_ = nullptr;
+  n_ = 0;
+  std::exception_ptr e = error_;
+  error_ = nullptr;
+  lock.unlock();
+  if (e) std::rethrow_exception(e);
+}
+
+}  // namespace godhand

@@ -1,0 +1,46 @@
+#pragma once
+// A fixed set of compute threads that run the jobs 0..n-1 of one call, the caller taking its
+// share: the pipeline's hand solvers run on them (PipelineParams::threads), as the distributed
+// services run one solver process per hand cluster. Each job touches only its own hand's
+// state, so the results are the same for every thread count (tested by the determinism hash).
+// No I/O, no allocation per call.
+#include <condition_variable>
+#include <cstdint>
+#include <exception>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace godhand {
+
+class Workers {
+ public:
+  /// threads >= 1: the caller and threads - 1 background threads. Throws std::invalid_argument
+  /// on threads < 1 or > 64.
+  explicit Workers(int threads);
+  ~Workers();
+  Workers(const Workers&) = delete;
+  Workers& operator=(const Workers&) = delete;
+
+  int threads() const { return static_cast<int>(threads_.size()) + 1; }
+
+  /// job(i) for every i in [0, n), each exactly once, spread over the threads; returns when all
+  /// have finished. The first exception a job throws is rethrown here (the others still run).
+  void run(int n, const std::function<void(int)>& job);
+
+ private:
+  void loop();
+  void drain(std::unique_lock<std::mutex>& lock);
+
+  std::vector<std::thread> threads_;
+  std::mutex mutex_;
+  std::condition_variable start_, done_;
+  const std::function<void(int)>* job_ = nullptr;
+  int n_ = 0, next_ = 0, running_ = 0;
+  std::uint64_t generation_ = 0;
+  bool stop_ = false;
+  std::exception_ptr error_;
+};
+
+}  // namespace godhand

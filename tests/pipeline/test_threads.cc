@@ -1,0 +1,130 @@
+// The hands' solvers on worker threads (PipelineParams::threads, core/pipeline/workers.h).
+// Oracles: a determinism hash over a real two-hand recording on the default scene (poses of
+// every God body, contact counts, forces and TOCs) that must be the same bit for bit for 1, 2
+// and 3 threads; the Workers run every job exactly once and hand back a job's exception.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstring>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "common/files.h"
+#include "leap/leap_recording.h"
+#include "leap/retarget.h"
+#include "pipeline/pipeline.h"
+#include "pipeline/workers.h"
+#include "scene/scene.h"
+#include "scene/scene_file.h"
+
+namespace godhand {
+namespace {
+
+std::uint64_t mix(std::uint64_t h, double d) {
+  std::uint64_t bits;
+  std::memcpy(&bits, &d, sizeof bits);
+  return (h ^ bits) * 1099511628211ull;
+}
+
+std::uint64_t mixPose(std::uint64_t h, const Pose& P) {
+  for (double d : {P.p.x(), P.p.y(), P.p.z(), P.q.w(), P.q.x(), P.q.y(), P.q.z()}) h = mix(h, d);
+  return h;
+}
+
+struct RunResult {
+  std::uint64_t hash = 1469598103934665603ull;
+  long loads = 0;  ///< contacts, summed over frames and hands
+  int threads = 0;
+};
+
+// Both hands of confidence2 on the bunny (0.25 m, centred on the palms: acceptance.sh's
+// twohands-bunny, where both hands press into it), its first 120 frames.
+RunResult runTwoHands(int threads) {
+  const leap::Recording rec = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/confidence2-49fps.json");
+  const HandModel right = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  const HandModel left = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_left.pbtxt");
+  const Scene scene = meshScene({parseMeshSpec(std::string(GODHAND_DEPLOY_DIR) + "/meshes/stanford-bunny.obj:0.25")},
+                                rec.meanPalmPosition(), meshFileLoader());
+  PipelineParams p;
+  p.step.dt = 1.0 / rec.meanFrameRate();
+  p.threads = threads;
+  Pipeline pipe(scene, {&right, &left}, p);
+  leap::Retargeter rt_right(right), rt_left(left);
+  std::vector<Pose> tr, tl;
+  std::vector<unsigned char> hr, hl;
+  RunResult res;
+  res.threads = pipe.params().threads;
+  for (size_t k = 0; k < 120 && k < rec.frames().size(); ++k) {
+    std::vector<HandInput> in(2);
+    for (const leap::TrackedHand& h : rec.frames()[k].hands) {
+      if (h.right) {
+        rt_right.targets(h, &tr, &hr);
+        in[0] = HandInput{true, tr.data(), hr.data()};
+      } else {
+        rt_left.targets(h, &tl, &hl);
+        in[1] = HandInput{true, tl.data(), hl.data()};
+      }
+    }
+    pipe.step(in);
+    for (int hand = 0; hand < 2; ++hand) {
+      for (const Pose& P : pipe.poses(hand)) res.hash = mixPose(res.hash, P);
+      const HandResult& r = pipe.result(hand);
+      res.hash = mix(mix(mix(res.hash, r.force_N), r.toc), static_cast<double>(r.contacts));
+      res.loads += r.contacts;
+    }
+  }
+  return res;
+}
+
+TEST(Threads, TwoHandsGiveTheSameResultOnOneTwoAndThreeThreads) {
+  const RunResult one = runTwoHands(1), two = runTwoHands(2), three = runTwoHands(3);
+  std::printf("[figure] two hands, 120 frames: hash %016llx on 1 thread, %016llx on 2, %016llx on 3 (%ld contacts)\n",
+              static_cast<unsigned long long>(one.hash), static_cast<unsigned long long>(two.hash),
+              static_cast<unsigned long long>(three.hash), one.loads);
+  EXPECT_GT(one.loads, 0) << "the hands must touch the bunny, else the run shows little";
+  EXPECT_EQ(one.hash, two.hash);
+  EXPECT_EQ(one.hash, three.hash);
+}
+
+TEST(Threads, WorkersRunEveryJobExactlyOnce) {
+  for (int threads : {1, 2, 4}) {
+    Workers w(threads);
+    EXPECT_EQ(w.threads(), threads);
+    for (int n : {0, 1, 2, 3, 17}) {
+      for (int rep = 0; rep < 200; ++rep) {
+        std::vector<std::atomic<int>> count(static_cast<size_t>(n));
+        for (auto& c : count) c = 0;
+        w.run(n, [&](int i) { ++count[static_cast<size_t>(i)]; });
+        for (int i = 0; i < n; ++i) ASSERT_EQ(count[static_cast<size_t>(i)].load(), 1) << "threads " << threads << " n " << n << " job " << i;
+      }
+    }
+  }
+}
+
+TEST(Threads, AJobsExceptionComesBackAfterTheOthersRan) {
+  for (int threads : {1, 2}) {
+    Workers w(threads);
+    std::atomic<int> ran{0};
+    try {
+      w.run(4, [&](int i) {
+        ++ran;
+        if (i == 1) throw std::runtime_error("job 1 failed");
+      });
+      ADD_FAILURE() << "no exception";
+    } catch (const std::runtime_error& e) {
+      EXPECT_STREQ(e.what(), "job 1 failed");
+    }
+    EXPECT_EQ(ran.load(), 4);
+    ran = 0;
+    w.run(3, [&](int) { ++ran; });  // usable after
+    EXPECT_EQ(ran.load(), 3);
+  }
+  EXPECT_THROW(Workers(0), std::invalid_argument);
+  PipelineParams p;
+  p.threads = 0;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace godhand
