@@ -13,6 +13,7 @@ pkgs=(
   clang libfuzzer-14-dev libclang-rt-14-dev  # libFuzzer targets of the parsers (tests/fuzz/run_fuzz.sh)
   cyclonedds-dev cyclonedds-tools openssl  # interop test (a Cyclone DDS reader, its idlc); lab PKI (deploy/security)
   python3-matplotlib  # godhand-bench --sweep --plot (Debian's python3, /usr/bin/python3)
+  libmujoco-dev  # godhand-bench --compare mujoco (deploy/run.sh compare) and its tests
 )
 missing=()
 for p in "${pkgs[@]}"; do

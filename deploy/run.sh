@@ -8,12 +8,15 @@
 #   deploy/run.sh test               build, run every test (ctest), then the core tests again
 #                                    and every area's unit tests under AddressSanitizer +
 #                                    UndefinedBehaviorSanitizer
+#   deploy/run.sh compare [bench args]  build, then godhand and MuJoCo (Debian libmujoco-dev) on the
+#                                    bundled recordings and meshes, side by side (godhand-bench
+#                                    --compare mujoco); extra args go to every godhand-bench run
 # Warnings are errors when CI=true. Build trees: build/ (RelWithDebInfo), build-asan/.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$root"
 mode=${1:-}
-[[ $mode == demo || $mode == test ]] || { echo "usage: deploy/run.sh demo|test [args]" >&2; exit 2; }
+[[ $mode == demo || $mode == test || $mode == compare ]] || { echo "usage: deploy/run.sh demo|test|compare [args]" >&2; exit 2; }
 shift
 deploy/install-deps.sh
 werror=OFF
@@ -87,6 +90,37 @@ PY
       echo "run.sh: replaying $rec live for the viewer; press Enter (or Ctrl-C) to stop"
       read -r _ || true
     fi
+    exit $status
+    ;;
+  compare)
+    build build godhand-bench
+    build/bin/godhand-bench --help | grep -q -- "--compare mujoco" ||
+      { echo "run.sh: godhand-bench has no --compare (MuJoCo not found by cmake: see build/configure.log)" >&2; exit 1; }
+    status=0
+    for c in "pinch.json stanford-bunny.obj:0.15" "HandSplay-110fps.json fandisk.obj:0.2" "confidence2-49fps.json stanford-bunny.obj:0.25"; do
+      read -r rec mesh <<<"$c"
+      echo "== ${rec%.json} on ${mesh%%.obj*} (${mesh#*:} m): godhand and MuJoCo on the same frames =="
+      build/bin/godhand-bench --recording "deploy/recordings/$rec" --mesh "deploy/meshes/$mesh" --compare mujoco --quiet "$@" \
+        | grep -v -E "^  (stages|clipped|sweeps|recording|mesh) " || status=1
+    done
+    # A flat table whose top is at the height of the recording's lowest 5 % of finger joints
+    # (Leap mm, Y up): the fingers press into it, and the excess lag is what the table forces.
+    tmp=$(mktemp -d)
+    trap 'rm -rf "$tmp"' EXIT
+    for rec in pinch.json HandSplay-110fps.json; do
+      python3 - "deploy/recordings/$rec" "$tmp/table.pbtxt" <<'PY' || { status=1; continue; }
+import json, sys
+zs = sorted(p[k][1] / 1000 for f in json.load(open(sys.argv[1]))["frames"] if isinstance(f, dict)
+            for p in f.get("pointables", []) for k in ("tipPosition", "dipPosition", "pipPosition", "mcpPosition") if k in p)
+top = zs[int(0.05 * (len(zs) - 1))]
+open(sys.argv[2], "w").write(f'name: "table"\nobjects {{ id: "table" box {{ half_extents {{ x: 1 y: 1 z: 0.1 }} }} '
+                             f'position {{ x: 0 y: 0 z: {top - 0.1!r} }} mass: 0 }}\n')
+print(f"== {sys.argv[1].split('/')[-1][:-5]} on a flat table (top at {top * 1e3:.1f} mm, the lowest 5 % of its finger joints): "
+      "godhand and MuJoCo on the same frames ==")
+PY
+      build/bin/godhand-bench --recording "deploy/recordings/$rec" --scene "$tmp/table.pbtxt" --compare mujoco --quiet "$@" \
+        | grep -v -E "^  (stages|clipped|sweeps|recording|mesh) " || status=1
+    done
     exit $status
     ;;
   test)

@@ -24,6 +24,9 @@
 
 #include "common/files.h"
 #include "common/sweep_spec.h"
+#ifdef GODHAND_WITH_MUJOCO
+#include "compare.h"
+#endif
 #include "runtime/trace_env.h"
 #include "leap/leap_recording.h"
 #include "source/recording.h"
@@ -46,6 +49,8 @@ const char* kUsage =
     "                     [--hand-model FILE] [--left-hand-model FILE] [--tool MODEL:BODY] [--solver exact|pgs]\n"
     "                     [--pgs-iterations N] [--substeps N] [--threads N] [--frames N] [--no-physics]\n"
     "                     [--json OUT] [--poses OUT.csv] [--tracker-pose POSE] [--hand-sides MAP] [--quiet] [--check]\n"
+    "       godhand-bench --compare mujoco --recording FILE [--mesh FILE[:SIZE_M] ... | --scene FILE --no-physics]\n"
+    "                     [--mujoco-timestep S] [--mujoco-weld-timeconst S] [--mujoco-contact-timeconst S] [--json OUT]\n"
     "       godhand-bench --sweep GRID.pbtxt --recording FILE [--scene FILE|none | --mesh FILE[:SIZE_M] ...]\n"
     "                     [--frames N] [--json OUT] [--plot OUT.png|svg] [--target BOUNDS]\n"
     "\n"
@@ -78,6 +83,13 @@ const char* kUsage =
     "  --poses OUT.csv       write every God object's world pose every frame, and its target's\n"
     "                        (columns tpx..tqz, empty when the body has no target that frame)\n"
     "  --substeps N          solve -> sweep rounds per frame (default 2)\n"
+    "  --compare mujoco      also drive the same hands with MuJoCo (each body welded to a mocap target) on the\n"
+    "                        same frames, stepped after godhand in each frame, and print both engines' figures\n"
+    "                        side by side (JSON: \"compare\"); static scenes only. Needs a build with MuJoCo\n"
+    "                        (Debian libmujoco-dev: deploy/run.sh compare installs it)\n"
+    "  --mujoco-timestep S   MuJoCo's timestep (default 0.002 s; a frame takes ceil(frame period / S) steps)\n"
+    "  --mujoco-weld-timeconst S, --mujoco-contact-timeconst S\n"
+    "                        MuJoCo's solref time constants of the welds and of the contacts (default 0.02 s)\n"
     "  --threads N           threads the hands' solvers run on at once (default: the hands, at most the\n"
     "                        cores; 1: one after the other). The results are the same for every N\n"
     "  --stuck-rotation RAD  a body whose last sweep hit at once may turn at most RAD in its next step\n"
@@ -116,6 +128,8 @@ struct Args {
   int physics_hz = 240;
   int substeps = PipelineParams{}.max_substeps;
   int threads = 0;  // 0: min(hands, cores)
+  std::string compare;  // "" or "mujoco"
+  double mj_timestep = 0.002, mj_weld = 0.02, mj_contact = 0.02;
   double stuck_rotation = PipelineParams{}.stuck_rotation;
   double contact_rotation = PipelineParams{}.step.max_step_rotation_in_contact;
   double max_rotation = PipelineParams{}.step.max_step_rotation;
@@ -202,6 +216,12 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--quiet") a.quiet = true;
     else if (f == "--substeps") a.substeps = static_cast<int>(parseCount(f, value(), 1, 64));
     else if (f == "--threads") a.threads = static_cast<int>(parseCount(f, value(), 1, 64));
+    else if (f == "--compare") {
+      a.compare = value();
+      if (a.compare != "mujoco") fail("--compare: expected mujoco, got '" + a.compare + "'");
+    } else if (f == "--mujoco-timestep") a.mj_timestep = parseDouble(f, value(), 1e-5, 0.1);
+    else if (f == "--mujoco-weld-timeconst") a.mj_weld = parseDouble(f, value(), 1e-5, 10.0);
+    else if (f == "--mujoco-contact-timeconst") a.mj_contact = parseDouble(f, value(), 1e-5, 10.0);
     else if (f == "--stuck-rotation") a.stuck_rotation = parseDouble(f, value(), 0.0, 10.0);
     else if (f == "--check") a.check = true;
     else fail("unknown argument '" + f + "' (see --help)");
@@ -349,6 +369,22 @@ int main(int argc, char** argv) {
     for (size_t h = 0; h < models.size(); ++h)
       retarget.push_back(sides[h] < 2 ? std::make_unique<leap::Retargeter>(*models[h]) : nullptr);
   } catch (const std::exception& e) { fail(e.what()); }
+#ifdef GODHAND_WITH_MUJOCO
+  std::unique_ptr<bench::Comparison> compare;
+  if (!args.compare.empty()) {
+    try {
+      mujoco::Params mj;
+      mj.timestep = args.mj_timestep;
+      mj.weld_timeconst = args.mj_weld;
+      mj.contact_timeconst = args.mj_contact;
+      compare = std::make_unique<bench::Comparison>(scene, models, names, params, 1.0 / rate, mj);
+    } catch (const std::exception& e) { fail(e.what()); }
+  }
+#else
+  if (!args.compare.empty())
+    fail("--compare mujoco: this godhand-bench was built without MuJoCo (install Debian's libmujoco-dev and rebuild; "
+         "deploy/run.sh compare does both)");
+#endif
 
   std::ofstream poses_out;
   if (!args.poses.empty()) {
@@ -437,6 +473,9 @@ int main(int argc, char** argv) {
         }
       }
     }
+#ifdef GODHAND_WITH_MUJOCO
+    if (compare) compare->step(inputs, pipe->resolver().collision());
+#endif
     const auto now = std::chrono::steady_clock::now();
     if (!args.quiet && std::chrono::duration<double>(now - t_progress).count() > 2.0) {
       t_progress = now;
@@ -486,6 +525,9 @@ int main(int argc, char** argv) {
               static_cast<unsigned long long>(c.sweeps_capped), static_cast<unsigned long long>(c.per_body_clips),
               static_cast<unsigned long long>(c.uniform_clips), static_cast<unsigned long long>(c.held_rounds),
               static_cast<unsigned long long>(c.rounds_shortened), static_cast<unsigned long long>(c.rounds_kept));
+#ifdef GODHAND_WITH_MUJOCO
+  if (compare) std::fputs(compare->table(sum, step_us).c_str(), stdout);
+#endif
   if (!sum.failure.empty()) std::printf("  FAILED RUN: %s\n", sum.failure.c_str());
   char hex[32];
   std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(hash.h));
@@ -564,6 +606,9 @@ int main(int argc, char** argv) {
                          {"god_note", o.god_note}});
     }
     j["objects"] = objects;
+#ifdef GODHAND_WITH_MUJOCO
+    if (compare) j["compare"] = compare->json(step_us);
+#endif
     if (!args.meshes.empty()) j["meshes"] = objects;
     std::ofstream out(args.json);
     out << j.dump(2) << "\n";
