@@ -9,9 +9,9 @@
 #   ROLE  what that identity may publish (every identity may subscribe to every godhand topic):
 #           ingest     HandTarget                         (the tracker host / godhand-ingest)
 #           solver     HandProposal                       (the solver host / godhand-solver)
-#           scene      HandState, ContactForces, SceneState, SceneDescription
+#           scene      HandState, ContactForces, SceneState, SceneDescription, SceneResume
 #                      (the host of godhand-scene and godhand-resolver, or either of them)
-#           resolver   HandState, ContactForces
+#           resolver   HandState, ContactForces, SceneResume (the scene state held for a restarted scene)
 #           monitor    nothing (only ServiceStatus, like every role): godhand-launch's monitor
 #                      on a host without services, a renderer
 #         every role publishes ServiceStatus (heartbeats).
@@ -116,8 +116,8 @@ publishes() {
   case $1 in
     ingest) echo "godhand/hand_target" ;;
     solver) echo "godhand/hand_proposal" ;;
-    scene) echo "godhand/hand_state godhand/contact_forces godhand/scene_state godhand/scene_description" ;;
-    resolver) echo "godhand/hand_state godhand/contact_forces" ;;
+    scene) echo "godhand/hand_state godhand/contact_forces godhand/scene_state godhand/scene_description godhand/scene_resume" ;;
+    resolver) echo "godhand/hand_state godhand/contact_forces godhand/scene_resume" ;;
     monitor) echo "" ;;
   esac
 }

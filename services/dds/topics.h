@@ -12,6 +12,7 @@ constexpr const char* kContactForces = "godhand/contact_forces";        // resol
 constexpr const char* kSceneState = "godhand/scene_state";              // scene -> everyone
 constexpr const char* kSceneDescription = "godhand/scene_description";  // scene -> late joiners
 constexpr const char* kServiceStatus = "godhand/service_status";        // every service -> monitors
+constexpr const char* kSceneResume = "godhand/scene_resume";            // resolver -> a restarted scene (live)
 }  // namespace topic
 
 // Profile names of deploy/dds/*.xml. Writers and readers share the names (a data_writer and a

@@ -197,6 +197,9 @@ std::string writePartitionProfiles(const std::string& profiles, const std::strin
 constexpr int kExitFailed = 1;    // the run failed, or --check failed
 constexpr int kExitConfig = 2;    // bad configuration (Cli::fail)
 constexpr int kExitStartup = 3;   // services did not come up
+// s: how long a restarted scene waits for the scene state the resolver holds (godhand-scene
+// --resume-wait; it stops at once when the resolver answers it holds nothing).
+constexpr double kSceneResumeWait = 3.0;
 
 std::string endedHow(const ChildStatus& c) {
   return c.exited ? "exit code " + std::to_string(c.exit_code) : "signal " + std::to_string(c.term_signal);
@@ -398,11 +401,6 @@ int main(int argc, char** argv) {
       case pb::Service::SCENE:
         c.argv.insert(c.argv.end(), {"--physics-hz", std::to_string(physics_hz)});
         if (no_physics) c.argv.push_back("--no-physics");
-        if (!lockstep) {  // a restarted scene resumes from its predecessor's poses (fresh file per run)
-          const std::string state = log_dir + "/scene.state";
-          std::remove(state.c_str());
-          c.argv.insert(c.argv.end(), {"--state-file", state});
-        }
         break;
       case pb::Service::RESOLVER:
         if (no_physics) c.argv.push_back("--no-physics");
@@ -923,7 +921,15 @@ int main(int argc, char** argv) {
         continue;
       }
       try {
-        sup.restart(it->first);
+        const ChildSpec* spec = specOf(it->first);
+        if (it->first == "scene" && !lockstep && spec) {
+          // A restarted scene resumes from the scene state the resolver holds, not the scene file.
+          ChildSpec resume = *spec;
+          resume.argv.insert(resume.argv.end(), {"--resume-wait", fmt17(kSceneResumeWait)});
+          sup.start(resume);
+        } else {
+          sup.restart(it->first);
+        }
       } catch (const std::exception& e) {
         failure = std::string("restart failed: ") + e.what();
         break;

@@ -78,6 +78,8 @@ int main(int argc, char** argv) {
   std::unique_ptr<dds::Reader<msg::SceneState>> scene_p;
   std::unique_ptr<dds::Writer<msg::HandState>> states_p;
   std::unique_ptr<dds::Writer<msg::ContactForces>> forces_p;
+  // Live: the newest SceneState taken, held for a scene that restarts (runtime/scene_resume.h).
+  std::unique_ptr<dds::Writer<msg::SceneState>> resume_p;
   try {
     proposals_p = std::make_unique<dds::Reader<msg::HandProposal>>(service.dds(), dds::topic::kHandProposal, service.streamProfile());
     scene_p = std::make_unique<dds::Reader<msg::SceneState>>(service.dds(), dds::topic::kSceneState, service.stateProfile());
@@ -85,6 +87,15 @@ int main(int argc, char** argv) {
     forces_p = std::make_unique<dds::Writer<msg::ContactForces>>(service.dds(), dds::topic::kContactForces, service.streamProfile());
   } catch (const std::exception& e) {
     service.fail(e.what());
+  }
+  // Not vital: refused (e.g. by the permissions of a lab PKI made before this topic existed),
+  // the resolver runs on and a restarted scene starts from the scene file (it says so).
+  if (!service.lockstep()) {
+    try {
+      resume_p = std::make_unique<dds::Writer<msg::SceneState>>(service.dds(), dds::topic::kSceneResume, dds::profile::kState);
+    } catch (const std::exception& e) {
+      service.reject(std::string("scene_resume: no writer (a restarted scene will start from the scene file): ") + e.what());
+    }
   }
   auto& proposals_in = *proposals_p;
   auto& scene_in = *scene_p;
@@ -158,6 +169,7 @@ int main(int argc, char** argv) {
       } else {
         resolver->setScene(s);
         have_scene = true;
+        if (resume_p && !resume_p->write(ss)) service.reject("scene_resume: write failed");
       }
     }
   };

@@ -1,69 +1,44 @@
 #include "runtime/scene_resume.h"
 
 #include <cmath>
-#include <cstdio>
-#include <fstream>
-#include <sstream>
+#include <vector>
 
 namespace godhand::svc {
 
-bool writeSceneResume(const std::string& path, const std::vector<ObjectMotion>& objects) {
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::trunc);
-    char b[512];
-    for (const ObjectMotion& o : objects) {
-      std::snprintf(b, sizeof b, "%d %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n", o.index, o.X.p.x(), o.X.p.y(), o.X.p.z(), o.X.q.w(),
-                    o.X.q.x(), o.X.q.y(), o.X.q.z());
-      out << b;
+bool applySceneResume(const SceneSnapshot& held, Scene* scene, int* moved, std::string* why) {
+  *moved = 0;
+  for (const ObjectMotion& o : held.objects) {
+    if (o.index < 0 || o.index >= static_cast<int>(scene->objects.size())) {
+      *why = "held scene state: object index " + std::to_string(o.index) + " not in the scene";
+      return false;
     }
-    out.flush();
-    if (!out) return false;
+    const SceneObject& so = scene->objects[static_cast<size_t>(o.index)];
+    if (!(so.mass > 0.0) || so.physics.type == PhysicsShapeType::None) {
+      *why = "held scene state: object " + std::to_string(o.index) + " ('" + so.id + "') is not dynamic in this scene";
+      return false;
+    }
+    if (!o.X.p.allFinite() || !o.X.q.coeffs().allFinite() || std::abs(o.X.q.norm() - 1.0) > 1e-6) {
+      *why = "held scene state: object " + std::to_string(o.index) + ": pose not finite or not unit";
+      return false;
+    }
   }
-  return std::rename(tmp.c_str(), path.c_str()) == 0;
+  for (const ObjectMotion& o : held.objects) scene->objects[static_cast<size_t>(o.index)].X_WO = o.X;
+  *moved = static_cast<int>(held.objects.size());
+  return true;
 }
 
-bool applySceneResume(const std::string& path, Scene* scene, int* moved, std::string* why) {
-  *moved = 0;
-  std::ifstream in(path);
-  if (!in) return true;  // nothing to resume from
-  std::vector<std::pair<int, Pose>> poses;
-  std::string line;
-  int n = 0;
-  while (std::getline(in, line)) {
-    ++n;
-    if (line.empty()) continue;
-    std::istringstream ls(line);
-    int index = -1;
-    double v[7];
-    ls >> index;
-    for (double& x : v) ls >> x;
-    std::string rest;
-    if (!ls || (ls >> rest)) {
-      *why = path + ":" + std::to_string(n) + ": expected INDEX PX PY PZ QW QX QY QZ";
-      return false;
-    }
-    if (index < 0 || index >= static_cast<int>(scene->objects.size())) {
-      *why = path + ":" + std::to_string(n) + ": object index " + std::to_string(index) + " not in the scene";
-      return false;
-    }
-    for (double x : v)
-      if (!std::isfinite(x)) {
-        *why = path + ":" + std::to_string(n) + ": not a finite number";
-        return false;
-      }
-    Pose X;
-    X.p = Vec3(v[0], v[1], v[2]);
-    X.q = Quat(v[3], v[4], v[5], v[6]);
-    if (std::abs(X.q.norm() - 1.0) > 1e-6) {
-      *why = path + ":" + std::to_string(n) + ": rotation is not a unit quaternion";
-      return false;
-    }
-    poses.push_back({index, X});
+ResumeWait::ResumeWait(double wait_s, double grace_s, Clock::time_point start)
+    : until_(start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(wait_s))),
+      grace_(std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(grace_s))) {}
+
+ResumeWait::State ResumeWait::poll(int writers, Clock::time_point now) {
+  if (writers > 0 && !matched_) {
+    matched_ = true;
+    matched_at_ = now;
   }
-  for (const auto& [index, X] : poses) scene->objects[static_cast<size_t>(index)].X_WO = X;
-  *moved = static_cast<int>(poses.size());
-  return true;
+  if (matched_ && now - matched_at_ >= grace_) return State::NothingHeld;
+  if (now >= until_) return State::TimedOut;
+  return State::Waiting;
 }
 
 }  // namespace godhand::svc

@@ -10,6 +10,7 @@
 #include "runtime/trace_env.h"
 #include "physics/physics_world.h"
 #include "runtime/convert.h"
+#include "dds/topics.h"
 #include "runtime/scene_resume.h"
 #include "runtime/service.h"
 #include "scene/scene_file.h"
@@ -35,26 +36,26 @@ int main(int argc, char** argv) {
   int physics_hz = 240;
   cli.flag("--no-physics", &no_physics, "do not simulate: dynamic objects stay put");
   cli.option("--physics-hz", &physics_hz, "HZ", "Bullet's fixed step rate");
-  std::string state_file;
-  cli.option("--state-file", &state_file, "FILE",
-             "live: keep the dynamic objects' poses in FILE after each step and, when FILE exists at start, start from them "
-             "(a restarted scene resumes instead of jumping back to the scene file)");
+  double resume_wait = 0.0;
+  cli.option("--resume-wait", &resume_wait, "S",
+             "live, a restarted scene: wait up to S s for the scene state the lab holds (godhand/scene_resume, kept by the "
+             "resolver) and start the dynamic objects there instead of at the scene file's poses (default 0: do not)");
   cli.parse(argc, argv);
   if (physics_hz < 10 || physics_hz > 100000) cli.fail("--physics-hz must be in [10, 100000]");
+  if (!(resume_wait >= 0.0 && resume_wait <= 60.0)) cli.fail("--resume-wait must be in [0, 60] s");
 
   svc::Service service("scene", common, cli);
   Scene scene;
   PipelineParams params;
   svc::traceFromEnvironment(&params);
   std::unique_ptr<SceneStage> stage;
-  int resumed = 0;
+  const bool resuming = resume_wait > 0.0 && !service.lockstep();
   try {
     scene = loadScene(service.sceneFile());
-    std::string why;
-    if (!state_file.empty() && !service.lockstep() && !svc::applySceneResume(state_file, &scene, &resumed, &why)) cli.fail(why);
     params.step.dt = 1.0 / service.frameRate();
     params.simulate = !no_physics;
-    stage = std::make_unique<SceneStage>(scene, params, physicsParamsFor(service.frameRate(), physics_hz));
+    // A resuming scene builds its world once it has the held poses (after the wait below).
+    if (!resuming) stage = std::make_unique<SceneStage>(scene, params, physicsParamsFor(service.frameRate(), physics_hz));
   } catch (const std::exception& e) {
     cli.fail(e.what());
   }
@@ -62,6 +63,54 @@ int main(int argc, char** argv) {
   if (objects > 100) cli.fail(service.sceneFile() + ": " + std::to_string(objects) + " objects; the wire carries at most 100");
 
   service.connect();
+  // A restarted scene: the dynamic objects start where the lab last saw them (runtime/scene_resume.h).
+  std::string resume_note;
+  if (resuming) {
+    try {
+      dds::Reader<msg::SceneState> held(service.dds(), dds::topic::kSceneResume, dds::profile::kState);
+      const SteadyClock::time_point t0 = SteadyClock::now();
+      svc::ResumeWait wait(resume_wait, 1.0, t0);
+      msg::SceneState ss;
+      for (;;) {
+        if (held.take(ss)) {
+          SceneSnapshot s;
+          std::string why;
+          int moved = 0;
+          if (!svc::fromWire(ss, objects, &s, &why) || !svc::applySceneResume(s, &scene, &moved, &why)) {
+            service.reject("scene_resume: " + why);
+            resume_note = "not resumed: " + why + "; the scene file's poses";
+          } else {
+            char b[160];
+            std::snprintf(b, sizeof b, "resumed %d dynamic object pose(s) from the held scene state (step %llu, %.2f s after start)", moved,
+                          static_cast<unsigned long long>(s.step), std::chrono::duration<double>(SteadyClock::now() - t0).count());
+            resume_note = b;
+          }
+          break;
+        }
+        const svc::ResumeWait::State st = wait.poll(held.matched(), SteadyClock::now());
+        if (st == svc::ResumeWait::State::NothingHeld) {
+          resume_note = "not resumed: the lab holds no scene state (nothing from the resolver's godhand/scene_resume); the scene file's poses";
+          break;
+        }
+        if (st == svc::ResumeWait::State::TimedOut) {
+          char b[160];
+          std::snprintf(b, sizeof b, "not resumed: no held scene state within %.1f s (no resolver running?); the scene file's poses", resume_wait);
+          resume_note = b;
+          break;
+        }
+        if (!service.wait(SteadyClock::now() + std::chrono::milliseconds(20))) break;
+      }
+    } catch (const std::exception& e) {
+      resume_note = std::string("not resumed: ") + e.what() + "; the scene file's poses";
+    }
+  }
+  if (resuming) {
+    try {
+      stage = std::make_unique<SceneStage>(scene, params, physicsParamsFor(service.frameRate(), physics_hz));
+    } catch (const std::exception& e) {
+      service.fail(e.what());
+    }
+  }
   std::unique_ptr<dds::Reader<msg::ContactForces>> forces_p;
   std::unique_ptr<dds::Writer<msg::SceneState>> state_p;
   std::unique_ptr<dds::Writer<msg::SceneDescription>> description_p;
@@ -79,7 +128,7 @@ int main(int argc, char** argv) {
                objects, scene.god_triangles, service.frameRate(), no_physics ? "off" : (std::to_string(physics_hz) + " Hz").c_str(),
                service.lockstep() ? "lock-step" : "live");
 
-  if (resumed > 0) std::fprintf(stderr, "scene: resumed %d dynamic object pose(s) from %s\n", resumed, state_file.c_str());
+  if (!resume_note.empty()) std::fprintf(stderr, "scene: %s\n", resume_note.c_str());
 
   msg::SceneDescription description;
   svc::describeScene(scene, service.sceneFile(), &description);
@@ -91,8 +140,6 @@ int main(int argc, char** argv) {
     out.stamp().frame(s.frame);
     if (state_out.write(out)) ++service.samples_out;
     else service.reject("scene_state: write failed");
-    if (!state_file.empty() && !service.lockstep() && !s.objects.empty() && !svc::writeSceneResume(state_file, s.objects))
-      service.reject("state file " + state_file + ": write failed");
   };
   publish(stage->initial(), msg::Stamp{});
 

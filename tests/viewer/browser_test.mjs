@@ -15,7 +15,7 @@
 //            connecting and leaving, bad HTTP: the viewer keeps serving the page at the live
 //            rate and the services' run passes its --check
 //   measure  (figures, not a pass/fail test) services' latency with 0 and 5 browsers, the
-//            viewer's added latency and CPU
+//            viewer's added latency and CPU (BROWSER_NICE=19: the browsers at niceness 19)
 import { spawn, spawnSync } from 'node:child_process';
 import fs from 'node:fs';
 import net from 'node:net';
@@ -115,8 +115,17 @@ const FLAGS = ['--headless', '--no-sandbox', '--disable-gpu', '--disable-quic', 
   '--disable-component-update', '--disable-sync'];
 let browser = null;
 async function openBrowser() {
-  // playwright gives every launch a fresh, temporary --user-data-dir of its own.
-  browser = await chromium.launch({ executablePath: CHROMIUM, args: FLAGS, headless: true, timeout: 60000 });
+  // playwright gives every launch a fresh, temporary --user-data-dir of its own. BROWSER_NICE=N
+  // (measure): the browser and everything it starts run at that niceness, as browsers a lab
+  // runs on the services' own machine should (the services keep their share of the cores).
+  let exe = CHROMIUM;
+  if (process.env.BROWSER_NICE) {
+    const nice = Number(process.env.BROWSER_NICE);
+    if (!(Number.isInteger(nice) && nice >= 0 && nice <= 19)) { console.log('BROWSER_NICE must be an integer in 0..19'); process.exit(2); }
+    exe = path.join(TMP, 'chromium-nice');
+    fs.writeFileSync(exe, `#!/bin/sh\nexec nice -n ${nice} ${CHROMIUM} "$@"\n`, { mode: 0o755 });
+  }
+  browser = await chromium.launch({ executablePath: exe, args: FLAGS, headless: true, timeout: 60000 });
   return browser;
 }
 async function openPage(url, size = { width: 1000, height: 700 }) {
