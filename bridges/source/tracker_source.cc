@@ -147,11 +147,15 @@ class FrameReplay : public TrackerSource {
     if (frames_.empty()) throw SourceError(path_ + ": no usable frames (" + base_.detail + ")");
     rate_ = meanRate(frames_);
     if (!(rate_ > 1.0 && rate_ <= 20000.0)) {  // up to 20 kHz: 10 kHz streams (dt 0.1 ms) are real
-      char buf[160];
-      std::snprintf(buf, sizeof buf, ": implausible frame rate %.6g Hz over %zu frames (timestamps %lld..%lld us)", rate_,
-                    frames_.size(), static_cast<long long>(frames_.front().timestamp_us),
-                    static_cast<long long>(frames_.back().timestamp_us));
-      throw SourceError(path_ + buf);
+      char buf[200];
+      if (frames_.size() < 2)
+        std::snprintf(buf, sizeof buf, ": only %zu usable frame, no frame rate", frames_.size());
+      else
+        std::snprintf(buf, sizeof buf, ": implausible frame rate %.6g Hz over %zu frames (timestamps %lld..%lld us)", rate_,
+                      frames_.size(), static_cast<long long>(frames_.front().timestamp_us),
+                      static_cast<long long>(frames_.back().timestamp_us));
+      // Why frames went: e.g. timestamps that decrease (a reversed file) or repeat.
+      throw SourceError(path_ + buf + (base_.detail.empty() ? std::string() : " (" + base_.detail + ")"));
     }
     end_ = frames_.size();
     if (limit > 0) end_ = std::min(end_, static_cast<size_t>(limit));

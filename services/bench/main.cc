@@ -13,6 +13,7 @@
 #include <iostream>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -366,8 +367,16 @@ int main(int argc, char** argv) {
     const PhysicsParams physics = physicsParamsFor(rate, args.physics_hz);
     pipe = std::make_unique<Pipeline>(scene, models, params, physics);
     metrics = std::make_unique<RunMetrics>(scene, models, names, params);
-    for (size_t h = 0; h < models.size(); ++h)
+    for (size_t h = 0; h < models.size(); ++h) {
       retarget.push_back(sides[h] < 2 ? std::make_unique<leap::Retargeter>(*models[h]) : nullptr);
+      // A model of the other side would be refused by the retargeter at the hand's first frame.
+      const std::optional<bool> right = retarget.back() ? retarget.back()->modelIsRight() : std::nullopt;
+      if (right && *right != (sides[h] == 0))
+        fail(std::string(sides[h] == 0 ? "--hand-model " + args.right_model : "--left-hand-model " + args.left_model) + ": model '" +
+             models[h]->name + "' is a " + (*right ? "right" : "left") + " hand, but it would be driven by the recording's " +
+             (sides[h] == 0 ? "right" : "left") + " hand (give the " + (sides[h] == 0 ? "right" : "left") + " model, e.g. deploy/models/hand16_" +
+             (sides[h] == 0 ? "right" : "left") + ".pbtxt)");
+    }
   } catch (const std::exception& e) { fail(e.what()); }
 #ifdef GODHAND_WITH_MUJOCO
   std::unique_ptr<bench::Comparison> compare;
