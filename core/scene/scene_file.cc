@@ -452,8 +452,31 @@ Scene parseScene(const std::string& text, const std::string& source, const std::
   return scene;
 }
 
-MeshSpec parseMeshSpec(const std::string& arg) {
+MeshSpec parseMeshSpec(const std::string& whole) {
   MeshSpec spec;
+  std::string arg = whole;
+  // "@X,Y,Z": where the mesh's centre goes (a path may contain '@': only a tail of three numbers
+  // is a position).
+  if (const size_t at = arg.rfind('@'); at != std::string::npos) {
+    const std::string tail = arg.substr(at + 1);
+    std::vector<double> v;
+    size_t pos = 0;
+    for (;;) {
+      const size_t comma = tail.find(',', pos);
+      const std::optional<double> x = wholeNumber(tail.substr(pos, comma == std::string::npos ? std::string::npos : comma - pos));
+      if (!x) break;
+      v.push_back(*x);
+      if (comma == std::string::npos) break;
+      pos = comma + 1;
+    }
+    const bool numbers_only = tail.find_first_not_of("0123456789+-.,eE") == std::string::npos;
+    if (numbers_only && !tail.empty()) {
+      if (v.size() != 3 || !Vec3(v[0], v[1], v[2]).allFinite() || Vec3(v[0], v[1], v[2]).cwiseAbs().maxCoeff() > 1e6)
+        throw SceneError("--mesh " + whole + ": position '" + tail + "' must be three finite numbers of metres (FILE[:SIZE_M]@X,Y,Z)");
+      spec.at = Vec3(v[0], v[1], v[2]);
+      arg = arg.substr(0, at);
+    }
+  }
   spec.path = arg;
   const size_t colon = arg.rfind(':');
   if (colon != std::string::npos) {
@@ -465,11 +488,11 @@ MeshSpec parseMeshSpec(const std::string& arg) {
       spec.path = arg.substr(0, colon);
       const double size = wholeNumber(tail).value_or(0.0);
       if (!(size > 0.0) || size > 1e3)
-        throw SceneError("--mesh " + arg + ": size '" + tail + "' must be a positive number of metres (FILE[:SIZE_M], e.g. bunny.obj:0.15)");
+        throw SceneError("--mesh " + whole + ": size '" + tail + "' must be a positive number of metres (FILE[:SIZE_M], e.g. bunny.obj:0.15)");
       spec.size = size;
     }
   }
-  if (spec.path.empty()) throw SceneError("--mesh " + arg + ": empty mesh path (FILE[:SIZE_M])");
+  if (spec.path.empty()) throw SceneError("--mesh " + whole + ": empty mesh path (FILE[:SIZE_M])");
   return spec;
 }
 
@@ -547,7 +570,7 @@ Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre, const Me
     if (n > 1) id += "_" + std::to_string(n);
     o.id = id;
     o.source = spec.path;
-    o.X_WO.p = centre;
+    o.X_WO.p = spec.at ? *spec.at : centre;
     o.mass = 0.0;
     scene.objects.push_back(std::move(o));
     if (!scene.name.empty()) scene.name += ", ";

@@ -24,6 +24,7 @@
 
 #include <functional>
 #include <stdexcept>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -67,15 +68,19 @@ struct MeshSpec {
   std::string path;
   double size = 0.15;  ///< largest bounding-box extent after scaling, m
   GodFidelity god;     ///< what the God side collides with (default: the full mesh)
+  /// World position (m) of the bounding-box centre; empty: meshScene's `centre` (the programs:
+  /// the recording's mean palm, so the mesh lands under the hand).
+  std::optional<Vec3> at;
 };
 
-/// "path" or "path:0.2" (the part after the last ':' is the size in metres unless it ends in
-/// .obj / .stl). Throws SceneError on a bad or non-positive size or an empty path.
+/// "path", "path:0.2" (the part after the last ':' is the size in metres unless it ends in
+/// .obj / .stl), each optionally followed by "@X,Y,Z" (world position of the mesh's centre, m).
+/// Throws SceneError on a bad or non-positive size, a bad position or an empty path.
 MeshSpec parseMeshSpec(const std::string& arg);
 
 /// A scene of the given meshes only: each scaled uniformly so its largest extent is spec.size
-/// and its bounding-box centre placed at `centre` (object frame origin = that centre, X_WO =
-/// {centre, identity}, translation = −scale · bbox centre), static, god as spec.god, physics
+/// and its bounding-box centre placed at spec.at, else at `centre` (object frame origin = that
+/// centre, X_WO = {centre, identity}, translation = −scale · bbox centre), static, god as spec.god, physics
 /// TRIANGLE_MESH, friction 0.5. Ids are the file stems (made unique with _2, _3, ...).
 /// The meshes are read through `load_mesh`. Throws SceneError (with the mesh file's
 /// "FILE:LINE: reason").

@@ -75,7 +75,7 @@ int main(int argc, char** argv) {
   cli.option("--display-triangles", &display_triangles, "N", "the page draws each object decimated to about N triangles (collisions use the full mesh)");
   cli.option("--poses", &poses, "FILE", "offline: a godhand-bench --poses CSV to play (no DDS)");
   cli.option("--scene", &scene_file, "FILE", "offline: the scene file the bench ran on (default: the lab's)");
-  cli.multi("--mesh", &meshes, "FILE[:SIZE_M]", "offline: the bench's ad-hoc mesh scene (needs --recording)");
+  cli.multi("--mesh", &meshes, "FILE[:SIZE_M][@X,Y,Z]", "offline: the bench's ad-hoc mesh scene (needs --recording)");
   cli.option("--recording", &recording, "FILE", "offline with --mesh: the recording the meshes were centred on");
   cli.option("--synthetic", &synthetic, "CLUSTER",
              "live: the page drives this cluster's hand (keys / Shift-drag): the viewer publishes its HandTarget at the lab's\n"

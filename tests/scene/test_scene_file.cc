@@ -358,6 +358,14 @@ TEST(MeshScene, ScalesAndCentresExactly) {
                 o.translation.x(), o.translation.y(), o.translation.z(), o.god->triangleCount());
   }
   EXPECT_EQ(s.god_triangles, 2LL * s.objects[0].god->triangleCount() + s.objects[2].god->triangleCount());
+  // A mesh given a position goes there, exactly; the others still take the centre.
+  const Vec3 there(1.5, 0.25, -0.75);
+  MeshSpec at = parseMeshSpec(fandisk + ":0.2");
+  at.at = there;
+  const Scene t = meshScene({parseMeshSpec(bunny + ":0.2"), at}, centre, meshFileLoader());
+  EXPECT_NEAR((worldBox(t.objects[0]).centre() - centre).norm(), 0.0, 1e-15);
+  EXPECT_NEAR((worldBox(t.objects[1]).centre() - there).norm(), 0.0, 1e-15);
+  EXPECT_NEAR(worldBox(t.objects[1]).extent().maxCoeff(), 0.2, 1e-15);
   try {
     meshScene({parseMeshSpec("/nonexistent/x.obj:0.1")}, centre, meshFileLoader());
     ADD_FAILURE() << "no error";
@@ -472,7 +480,19 @@ TEST(MeshScene, ParseMeshSpec) {
   EXPECT_EQ(parseMeshSpec("x:y/a.obj").path, "x:y/a.obj");
   EXPECT_EQ(parseMeshSpec("odd:name.OBJ").path, "odd:name.OBJ");
   EXPECT_EQ(parseMeshSpec("a.obj:1e-1").size, 0.1);
-  for (const char* bad : {"a.obj:abc", "a.obj:", "a.obj:-1", "a.obj:0", "a.obj:0.2x", "a.obj:nan", ":0.2", ""}) {
+  // "@X,Y,Z": where the mesh's centre goes; a path that merely contains '@' stays a path.
+  const MeshSpec placed = parseMeshSpec("dir/a.obj:0.25@0.5,-1,2e-1");
+  EXPECT_EQ(placed.path, "dir/a.obj");
+  EXPECT_EQ(placed.size, 0.25);
+  ASSERT_TRUE(placed.at.has_value());
+  EXPECT_EQ(*placed.at, Vec3(0.5, -1.0, 0.2));
+  EXPECT_EQ(*parseMeshSpec("a.obj@0,0,1").at, Vec3(0, 0, 1));
+  EXPECT_EQ(parseMeshSpec("a.obj@0,0,1").size, 0.15);
+  EXPECT_FALSE(parseMeshSpec("a.obj:0.2").at.has_value());
+  EXPECT_EQ(parseMeshSpec("me@lab/a.obj").path, "me@lab/a.obj");
+  EXPECT_FALSE(parseMeshSpec("me@lab/a.obj").at.has_value());
+  for (const char* bad : {"a.obj:abc", "a.obj:", "a.obj:-1", "a.obj:0", "a.obj:0.2x", "a.obj:nan", ":0.2", "",
+                          "a.obj@1,2", "a.obj@1,2,3,4", "a.obj:0.2@1,,3", "a.obj@1e9,0,0", "a.obj@-", "@1,2,3"}) {
     try {
       parseMeshSpec(bad);
       ADD_FAILURE() << bad << " accepted";
