@@ -20,7 +20,7 @@ constexpr double kDeg = 3.14159265358979323846 / 180.0;
 
 }  // namespace
 
-std::vector<Vec3> handLandmarks(bool right, const Vec3& palm, double curl) {
+std::vector<Vec3> handLandmarks(bool right, const Vec3& palm, double curl, double roll_deg) {
   const double s = right ? 1.0 : -1.0;  // mirror x for a left hand (thumb on +x)
   std::vector<Vec3> p(21);
   p[0] = palm + Vec3(0, -0.047, 0);  // the palm centre is the midpoint of wrist and middle MCP
@@ -44,6 +44,13 @@ std::vector<Vec3> handLandmarks(bool right, const Vec3& palm, double curl) {
       p[b + static_cast<size_t>(k) + 1] = p[b + static_cast<size_t>(k)] + len[f][k] * Vec3(0, std::cos(a), -std::sin(a));
     }
   }
+  if (roll_deg != 0.0) {  // about +Y through the palm centre
+    const double c = std::cos(roll_deg * kDeg), sn = std::sin(roll_deg * kDeg);
+    for (Vec3& v : p) {
+      const Vec3 d = v - palm;
+      v = palm + Vec3(c * d.x() + sn * d.z(), d.y(), -sn * d.x() + c * d.z());
+    }
+  }
   return p;
 }
 
@@ -57,82 +64,106 @@ Script parseScript(const std::string& text, const std::string& name) {
     ++n;
     const size_t hash = line.find('#');
     if (hash != std::string::npos) line.resize(hash);
-    std::istringstream ls(line);
+    // Motions joined by ';' on one line run at the same time (each over its own S).
+    std::vector<std::string> parts;
+    for (size_t a = 0;;) {
+      const size_t semi = line.find(';', a);
+      parts.push_back(line.substr(a, semi == std::string::npos ? std::string::npos : semi - a));
+      if (semi == std::string::npos) break;
+      a = semi + 1;
+    }
     std::vector<std::string> tok;
-    for (std::string t; ls >> t;) tok.push_back(t);
-    if (tok.empty()) continue;
-    if (!header) {
-      if (tok.size() != 2 || tok[0] != "godhand-synthetic" || tok[1] != "1") fail(name, n, "first line must be 'godhand-synthetic 1'");
-      header = true;
-      continue;
+    int hands_on_line[2] = {0, 0};
+    for (size_t part = 0; part < parts.size(); ++part) {
+      tok.clear();
+      std::istringstream ls(parts[part]);
+      for (std::string t; ls >> t;) tok.push_back(t);
+      if (tok.empty()) {
+        if (parts.size() > 1) fail(name, n, "empty motion between ';'");
+        continue;
+      }
+      if (!header) {
+        if (tok.size() != 2 || tok[0] != "godhand-synthetic" || tok[1] != "1") fail(name, n, "first line must be 'godhand-synthetic 1'");
+        header = true;
+        continue;
+      }
+      auto num = [&](size_t i) {
+        if (i >= tok.size()) fail(name, n, "'" + tok[0] + "': missing value");
+        char* end = nullptr;
+        const double v = std::strtod(tok[i].c_str(), &end);
+        if (*end != '\0' || !std::isfinite(v)) fail(name, n, "'" + tok[i] + "' is not a finite number");
+        return v;
+      };
+      auto side = [&](size_t i) {
+        if (i >= tok.size()) fail(name, n, "'" + tok[0] + "': missing side");
+        if (tok[i] == "right") return 1;
+        if (tok[i] == "left") return 0;
+        fail(name, n, "side must be right or left, not '" + tok[i] + "'");
+      };
+      auto arity = [&](size_t k) {
+        if (tok.size() != k) fail(name, n, "'" + tok[0] + "' takes " + std::to_string(k - 1) + " values");
+      };
+      auto seconds = [&](size_t i) {
+        const double v = num(i);
+        if (!(v >= 0.0 && v <= 3600.0)) fail(name, n, "duration must be in [0, 3600] s");
+        return v;
+      };
+      auto position = [&](size_t i) {
+        const Vec3 p(num(i), num(i + 1), num(i + 2));
+        if (p.cwiseAbs().maxCoeff() > 1000.0) fail(name, n, "position beyond 1 km");
+        return p;
+      };
+      if (parts.size() > 1 && tok[0] != "move" && tok[0] != "curl" && tok[0] != "roll")
+        fail(name, n, "only move, curl and roll run together (';'), not '" + tok[0] + "'");
+      Command c;
+      c.op = tok[0];
+      c.line = n;
+      if (c.op == "rate") {
+        arity(2);
+        if (moved) fail(name, n, "rate must come before any motion");
+        sc.rate_hz = num(1);
+        if (!(sc.rate_hz >= 1.0 && sc.rate_hz <= 10000.0)) fail(name, n, "rate must be in [1, 10000] Hz");
+        continue;
+      } else if (c.op == "start" || c.op == "teleport") {
+        arity(5);
+        c.side = side(1);
+        c.p = position(2);
+      } else if (c.op == "move") {
+        arity(6);
+        c.side = side(1);
+        c.seconds = seconds(2);
+        c.p = position(3);
+      } else if (c.op == "curl") {
+        arity(4);
+        c.side = side(1);
+        c.seconds = seconds(2);
+        c.value = num(3);
+        if (!(c.value >= 0.0 && c.value <= 1.0)) fail(name, n, "curl fraction must be in [0, 1]");
+      } else if (c.op == "roll") {
+        arity(4);
+        c.side = side(1);
+        c.seconds = seconds(2);
+        c.value = num(3);
+        if (!(c.value >= -180.0 && c.value <= 180.0)) fail(name, n, "roll angle must be in [-180, 180] degrees");
+      } else if (c.op == "hold") {
+        arity(2);
+        c.seconds = seconds(1);
+      } else if (c.op == "lost") {
+        arity(3);
+        c.side = side(1);
+        c.seconds = seconds(2);
+      } else if (c.op == "nan") {
+        arity(3);
+        c.side = side(1);
+        c.value = num(2);
+        if (!(c.value >= 1 && c.value <= 1e6) || std::floor(c.value) != c.value) fail(name, n, "nan takes a frame count 1..1000000");
+      } else {
+        fail(name, n, "unknown command '" + c.op + "'");
+      }
+      if (parts.size() > 1 && ++hands_on_line[c.side] > 1) fail(name, n, "one motion per hand on a line");
+      moved = true;
+      sc.commands.push_back(c);
     }
-    auto num = [&](size_t i) {
-      if (i >= tok.size()) fail(name, n, "'" + tok[0] + "': missing value");
-      char* end = nullptr;
-      const double v = std::strtod(tok[i].c_str(), &end);
-      if (*end != '\0' || !std::isfinite(v)) fail(name, n, "'" + tok[i] + "' is not a finite number");
-      return v;
-    };
-    auto side = [&](size_t i) {
-      if (i >= tok.size()) fail(name, n, "'" + tok[0] + "': missing side");
-      if (tok[i] == "right") return 1;
-      if (tok[i] == "left") return 0;
-      fail(name, n, "side must be right or left, not '" + tok[i] + "'");
-    };
-    auto arity = [&](size_t k) {
-      if (tok.size() != k) fail(name, n, "'" + tok[0] + "' takes " + std::to_string(k - 1) + " values");
-    };
-    auto seconds = [&](size_t i) {
-      const double v = num(i);
-      if (!(v >= 0.0 && v <= 3600.0)) fail(name, n, "duration must be in [0, 3600] s");
-      return v;
-    };
-    auto position = [&](size_t i) {
-      const Vec3 p(num(i), num(i + 1), num(i + 2));
-      if (p.cwiseAbs().maxCoeff() > 1000.0) fail(name, n, "position beyond 1 km");
-      return p;
-    };
-    Command c;
-    c.op = tok[0];
-    c.line = n;
-    if (c.op == "rate") {
-      arity(2);
-      if (moved) fail(name, n, "rate must come before any motion");
-      sc.rate_hz = num(1);
-      if (!(sc.rate_hz >= 1.0 && sc.rate_hz <= 10000.0)) fail(name, n, "rate must be in [1, 10000] Hz");
-      continue;
-    } else if (c.op == "start" || c.op == "teleport") {
-      arity(5);
-      c.side = side(1);
-      c.p = position(2);
-    } else if (c.op == "move") {
-      arity(6);
-      c.side = side(1);
-      c.seconds = seconds(2);
-      c.p = position(3);
-    } else if (c.op == "curl") {
-      arity(4);
-      c.side = side(1);
-      c.seconds = seconds(2);
-      c.value = num(3);
-      if (!(c.value >= 0.0 && c.value <= 1.0)) fail(name, n, "curl fraction must be in [0, 1]");
-    } else if (c.op == "hold") {
-      arity(2);
-      c.seconds = seconds(1);
-    } else if (c.op == "lost") {
-      arity(3);
-      c.side = side(1);
-      c.seconds = seconds(2);
-    } else if (c.op == "nan") {
-      arity(3);
-      c.side = side(1);
-      c.value = num(2);
-      if (!(c.value >= 1 && c.value <= 1e6) || std::floor(c.value) != c.value) fail(name, n, "nan takes a frame count 1..1000000");
-    } else {
-      fail(name, n, "unknown command '" + c.op + "'");
-    }
-    moved = true;
-    sc.commands.push_back(c);
   }
   if (!header) fail(name, n, "empty script (first line must be 'godhand-synthetic 1')");
   bool started[2] = {false, false};
@@ -149,6 +180,7 @@ Generated generate(const Script& sc, const Pose& X_WT) {
     bool exists = false;
     Vec3 p = Vec3::Zero();
     double curl = 0.0;
+    double roll = 0.0;  // degrees
     int lost_frames = 0;
     int nan_frames = 0;
   };
@@ -169,7 +201,7 @@ Generated generate(const Script& sc, const Pose& X_WT) {
         --st.lost_frames;
         continue;
       }
-      const std::vector<Vec3> lm = handLandmarks(s == 1, st.p, st.curl);
+      const std::vector<Vec3> lm = handLandmarks(s == 1, st.p, st.curl, st.roll);
       std::array<Vec3, skeleton::kLandmarks> a;
       for (size_t i = 0; i < a.size(); ++i) a[i] = lm[i];
       if (st.nan_frames > 0) {
@@ -189,24 +221,46 @@ Generated generate(const Script& sc, const Pose& X_WT) {
     g.frames.push_back(std::move(f));
   };
   auto framesFor = [&](double seconds) { return static_cast<int>(std::llround(seconds * sc.rate_hz)); };
-  for (const Command& c : sc.commands) {
+  for (size_t ci = 0; ci < sc.commands.size(); ++ci) {
+    const Command& c = sc.commands[ci];
     HandState* st = c.side >= 0 ? &h[c.side] : nullptr;
     if (c.op == "start") {
       st->exists = true;
       st->p = c.p;
       st->curl = 0.0;
+      st->roll = 0.0;
     } else if (c.op == "teleport") {
       st->p = c.p;
     } else if (c.op == "nan") {
       st->nan_frames = static_cast<int>(c.value);
-    } else if (c.op == "move" || c.op == "curl") {
-      const int n = std::max(1, framesFor(c.seconds));
-      const Vec3 p0 = st->p;
-      const double c0 = st->curl;
-      for (int i = 1; i <= n; ++i) {
-        const double u = static_cast<double>(i) / n;
-        if (c.op == "move") st->p = p0 + u * (c.p - p0);
-        else st->curl = c0 + u * (c.value - c0);
+    } else if (c.op == "move" || c.op == "curl" || c.op == "roll") {
+      // This motion and the ones joined to it by ';' (same line), at once.
+      size_t last = ci;
+      while (last + 1 < sc.commands.size() && sc.commands[last + 1].line == c.line) ++last;
+      struct Motion {
+        const Command* c;
+        HandState* st;
+        int n;
+        Vec3 p0;
+        double c0, r0;
+      };
+      std::vector<Motion> ms;
+      int frames = 0;
+      for (size_t j = ci; j <= last; ++j) {
+        const Command& m = sc.commands[j];
+        HandState* s = &h[m.side];
+        ms.push_back({&m, s, std::max(1, framesFor(m.seconds)), s->p, s->curl, s->roll});
+        frames = std::max(frames, ms.back().n);
+      }
+      ci = last;
+      for (int i = 1; i <= frames; ++i) {
+        for (const Motion& m : ms) {
+          if (i > m.n) continue;
+          const double u = static_cast<double>(i) / m.n;
+          if (m.c->op == "move") m.st->p = m.p0 + u * (m.c->p - m.p0);
+          else if (m.c->op == "curl") m.st->curl = m.c0 + u * (m.c->value - m.c0);
+          else m.st->roll = m.r0 + u * (m.c->value - m.r0);
+        }
         emit();
       }
     } else if (c.op == "hold") {

@@ -101,6 +101,7 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
   c.forces_clamped = resolver_->counters().forces_clamped;
   c.scene_pushouts = scene_stage_->counters().scene_pushouts;
   c.pushout_unresolved = scene_stage_->counters().pushout_unresolved;
+  c.pushout_restored = scene_stage_->counters().pushout_restored;
   c.lifted_starts = c.solver_failures = c.inexact_solves = c.rounds_shortened = c.rounds_kept = 0;
   c.sweeps = c.sweep_iterations = c.sweeps_capped = c.per_body_clips = c.uniform_clips = c.sweeps_certified = c.held_rounds = 0;
   for (const auto& s : solvers_) {

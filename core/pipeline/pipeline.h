@@ -76,6 +76,7 @@ struct FrameReport {
 struct PipelineCounters {
   std::uint64_t frames = 0, clipped_steps = 0, started_inside = 0, lifted_starts = 0, solver_failures = 0,
                 inexact_solves = 0, forces_clamped = 0, scene_pushouts = 0, pushout_unresolved = 0;
+  std::uint64_t pushout_restored = 0;  ///< squeezed objects put back to their pose before the step
   std::uint64_t sweeps = 0, sweep_iterations = 0, sweeps_capped = 0;  ///< the solvers' (SolverCounters)
   std::uint64_t per_body_clips = 0, uniform_clips = 0, sweeps_certified = 0, held_rounds = 0;
   std::uint64_t rounds_shortened = 0, rounds_kept = 0;  ///< the solvers' (SolverCounters)

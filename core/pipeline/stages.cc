@@ -717,12 +717,15 @@ const SceneSnapshot& SceneStage::step(const ForceSet* forces, std::uint64_t fram
       for (const AppliedLoad& l : forces->loads)
         if (l.object >= 0 && l.object < collision_.objectCount() && physics_->isDynamic(l.object))
           physics_->applyForce(l.object, -l.lambda * l.n_W, l.p_W);
+    before_.clear();
+    for (int o = 0; o < collision_.objectCount(); ++o) before_.push_back(physics_->pose(o));
     physics_->step(params_.step.dt);
     for (int o = 0; o < collision_.objectCount(); ++o)
       if (physics_->isDynamic(o)) collision_.setObjectPose(o, physics_->pose(o));
     // Paper §6.2: objects that Bullet moved into God objects are moved back out, deepest first,
     // iterated to a cap (a push can create a new overlap with another God object).
     const double margin = params_.step.rows.margin;
+    bool capped = false;
     for (int it = 0; forces && it < params_.resolve_iterations; ++it) {
       double deepest = 0.0;
       int obj = -1;
@@ -747,7 +750,25 @@ const SceneSnapshot& SceneStage::step(const ForceSet* forces, std::uint64_t fram
       collision_.setObjectPose(obj, physics_->pose(obj));
       ++snapshot_.pushouts;
       ++counters_.scene_pushouts;
-      if (it + 1 == params_.resolve_iterations) ++counters_.pushout_unresolved;
+      if (it + 1 == params_.resolve_iterations) {
+        ++counters_.pushout_unresolved;
+        capped = true;
+      }
+    }
+    // An object the push-outs could not free (squeezed between God objects, e.g. two hands
+    // closing on it: each push drives it into the other side) goes back to its pose before this
+    // step, the pose the hands were solved against (so clear of them), at rest: held by the hands.
+    for (int o = 0; capped && o < collision_.objectCount(); ++o) {
+      if (!physics_->isDynamic(o)) continue;
+      bool inside = false;
+      for (const GodBody& g : forces->bodies) {
+        Vec3 n;
+        inside = inside || collision_.signedDistance(o, g.shape, g.X, margin, &n) < 0.0;
+      }
+      if (!inside) continue;
+      physics_->setPose(o, before_[static_cast<size_t>(o)]);
+      collision_.setObjectPose(o, physics_->pose(o));
+      ++counters_.pushout_restored;
     }
   }
   fill();

@@ -228,6 +228,7 @@ struct ResolverCounters {
 };
 struct SceneCounters {
   std::uint64_t steps = 0, scene_pushouts = 0, pushout_unresolved = 0;
+  std::uint64_t pushout_restored = 0;  ///< objects put back to their pose before the step (unresolved push-outs)
 };
 
 /// One hand cluster's solver: start / lift, contacts, the Gauss step (ClusterStepper).
@@ -366,6 +367,7 @@ class SceneStage {
   std::unique_ptr<PhysicsWorld> physics_;
   SceneSnapshot snapshot_;
   SceneCounters counters_;
+  std::vector<Pose> before_;  ///< the objects' poses before the current step
 };
 
 /// Bullet's parameters for a tracker frame rate: fixed steps of 1/physics_hz, enough substeps

@@ -413,6 +413,22 @@ int main(int argc, char** argv) {
   double kkt_max = 0;
   int contacts_max = 0;
   ResultHash hash;
+  // The dynamic objects' motion (Bullet's poses after every frame): where each started, where it
+  // ended, how high it rose above its start, how far it got from it, how fast it went. With
+  // --no-physics there is no Bullet world and the objects stay put (none is reported moving).
+  struct ObjectTrack {
+    int index = 0;
+    Pose start, final_pose;
+    double max_rise = 0.0, max_drop = 0.0, max_displacement = 0.0, max_speed = 0.0;
+  };
+  std::vector<ObjectTrack> tracks;
+  for (size_t o = 0; o < scene.objects.size(); ++o)
+    if (scene.objects[o].mass > 0.0) {
+      ObjectTrack t;
+      t.index = static_cast<int>(o);
+      t.start = t.final_pose = pipe->physics() ? pipe->physics()->pose(t.index) : scene.objects[o].X_WO;
+      tracks.push_back(t);
+    }
   const auto t_run = std::chrono::steady_clock::now();
   auto t_progress = t_run;
   for (size_t fi = 0; fi < n_frames; ++fi) {
@@ -446,6 +462,15 @@ int main(int argc, char** argv) {
     st_merge.push_back(r.times.merge_us);
     st_scene.push_back(r.times.scene_us);
     contacts_max = std::max(contacts_max, r.contacts);
+    if (const PhysicsWorld* w = pipe->physics())
+      for (ObjectTrack& t : tracks) {
+        t.final_pose = w->pose(t.index);
+        const Vec3 d = t.final_pose.p - t.start.p;
+        t.max_rise = std::max(t.max_rise, d.z());
+        t.max_drop = std::max(t.max_drop, -d.z());
+        t.max_displacement = std::max(t.max_displacement, d.norm());
+        t.max_speed = std::max(t.max_speed, w->linearVelocity(t.index).norm());
+      }
     // Figures of METHOD.md §5, outside the timed step (core/pipeline/run_metrics.h).
     for (size_t h = 0; h < H; ++h) {
       const HandFrameReport& hr = r.hands[h];
@@ -520,11 +545,12 @@ int main(int argc, char** argv) {
               margin * 1e3, all.joint_gap_max_m);
   for (const HandSummary& hs : sum.hands) std::printf("  %s\n", describe(hs).c_str());
   std::printf("  clipped %llu hand-frames (TOC < 1e-3 in %llu), solve -> sweep rounds %llu (max %llu in a frame); "
-              "contacts max %d, KKT max %.1e, solver failures %llu, inexact solves %llu, lifted starts %llu, scene push-outs %llu\n",
+              "contacts max %d, KKT max %.1e, solver failures %llu, inexact solves %llu, lifted starts %llu, scene push-outs %llu (%llu objects left squeezed, put back)\n",
               static_cast<unsigned long long>(all.clipped_frames), static_cast<unsigned long long>(all.toc_below_1e3),
               static_cast<unsigned long long>(all.substeps), static_cast<unsigned long long>(all.substeps_max), contacts_max,
               kkt_max, static_cast<unsigned long long>(c.solver_failures), static_cast<unsigned long long>(c.inexact_solves),
-              static_cast<unsigned long long>(c.lifted_starts), static_cast<unsigned long long>(c.scene_pushouts));
+              static_cast<unsigned long long>(c.lifted_starts), static_cast<unsigned long long>(c.scene_pushouts),
+              static_cast<unsigned long long>(c.pushout_restored));
   std::printf("  sweeps %llu (%llu answered without a query), conservative-advancement iterations %llu (%.2f per sweep), "
               "%llu stopped at the iteration bound; "
               "clipped rounds: %llu with each body at its own TOC, %llu with the hand at TOC_min, %llu left where they started; "
@@ -535,6 +561,13 @@ int main(int argc, char** argv) {
               static_cast<unsigned long long>(c.sweeps_capped), static_cast<unsigned long long>(c.per_body_clips),
               static_cast<unsigned long long>(c.uniform_clips), static_cast<unsigned long long>(c.held_rounds),
               static_cast<unsigned long long>(c.rounds_shortened), static_cast<unsigned long long>(c.rounds_kept));
+  for (const ObjectTrack& t : tracks) {
+    const Vec3 d = t.final_pose.p - t.start.p;
+    std::printf("  object %s: moved (%.4f, %.4f, %.4f) m start -> end, rose at most %.4f m, dropped at most %.4f m, "
+                "farthest %.4f m from its start, speed max %.3f m/s\n",
+                scene.objects[static_cast<size_t>(t.index)].id.c_str(), d.x(), d.y(), d.z(), t.max_rise, t.max_drop,
+                t.max_displacement, t.max_speed);
+  }
 #ifdef GODHAND_WITH_MUJOCO
   if (compare) std::fputs(compare->table(sum, step_us).c_str(), stdout);
 #endif
@@ -589,6 +622,8 @@ int main(int argc, char** argv) {
     j["lifted_starts"] = c.lifted_starts;
     j["started_inside"] = c.started_inside;
     j["scene_pushouts"] = c.scene_pushouts;
+    j["scene_pushouts_unresolved"] = c.pushout_unresolved;
+    j["scene_pushouts_restored"] = c.pushout_restored;
     j["forces_clamped"] = c.forces_clamped;
     j["sweeps"] = c.sweeps;
     j["sweep_iterations"] = c.sweep_iterations;
@@ -616,6 +651,23 @@ int main(int argc, char** argv) {
                          {"god_note", o.god_note}});
     }
     j["objects"] = objects;
+    // The dynamic objects' motion over the run (Bullet's pose after each frame; world, m).
+    nlohmann::json motion = nlohmann::json::array();
+    for (const ObjectTrack& t : tracks) {
+      const Pose& a = t.start;
+      const Pose& b = t.final_pose;
+      motion.push_back({{"id", scene.objects[static_cast<size_t>(t.index)].id},
+                        {"start_position_m", {a.p.x(), a.p.y(), a.p.z()}},
+                        {"start_rotation_wxyz", {a.q.w(), a.q.x(), a.q.y(), a.q.z()}},
+                        {"final_position_m", {b.p.x(), b.p.y(), b.p.z()}},
+                        {"final_rotation_wxyz", {b.q.w(), b.q.x(), b.q.y(), b.q.z()}},
+                        {"max_rise_m", t.max_rise},
+                        {"max_drop_m", t.max_drop},
+                        {"max_displacement_m", t.max_displacement},
+                        {"max_speed_mps", t.max_speed},
+                        {"simulated", pipe->physics() != nullptr}});
+    }
+    j["dynamic_objects"] = motion;
 #ifdef GODHAND_WITH_MUJOCO
     if (compare) j["compare"] = compare->json(step_us);
 #endif

@@ -37,6 +37,12 @@ TEST(Synthetic, ParseErrorsNameTheLine) {
       {"godhand-synthetic 1\nstart right 0 0 0\ncurl right 1 2\n", ":3: curl fraction"},
       {"godhand-synthetic 1\nstart right 0 0 0\njump right\n", ":3: unknown command 'jump'"},
       {"godhand-synthetic 1\n# nothing\n", "no hand"},
+      {"godhand-synthetic 1\nstart right 0 0 0\nroll right 1 200\n", ":3: roll angle"},
+      {"godhand-synthetic 1\nstart right 0 0 0\nroll right 1\n", ":3: 'roll' takes 3 values"},
+      {"godhand-synthetic 1\nstart right 0 0 0 ; start left 0 0 0\n", ":2: only move, curl and roll run together"},
+      {"godhand-synthetic 1\nstart right 0 0 0\nmove right 1 0 0 0 ; curl right 1 1\n", ":3: one motion per hand"},
+      {"godhand-synthetic 1\nstart right 0 0 0\nmove right 1 0 0 0 ;\n", ":3: empty motion"},
+      {"godhand-synthetic 1\nstart right 0 0 0\nmove right 1 0 0 0 ; move left 1 0 0 0\n", ":3: 'move' of the left hand before"},
   };
   for (const auto& b : bad) {
     try {
@@ -146,4 +152,76 @@ TEST(Synthetic, GlitchesBeyondTheVolumeOrTheSpeedLimitAreDropped) {
   EXPECT_EQ(loose.rejections.find("speed limit"), std::string::npos) << loose.rejections;
   o.max_abs_position_m = 0.1;
   EXPECT_THROW(bridges::loadRecording(dataPath("glitches.txt"), o), bridges::SourceError);  // no tracked hands
+}
+
+// Grasp a box between two hands (issue 11): `roll` turns the hands palm to palm, ';' moves them
+// at once. The script gives a right and a left hand, tracked in every frame, deterministic, whose
+// palms face each other across the box (tests/data/synthetic/grasp_box.pbtxt: sides at x = ±0.04)
+// and close on it from opposite sides, then lift together.
+TEST(Synthetic, GraspBoxTwoHandsCloseFromOppositeSides) {
+  const auto a = bridges::loadRecording(dataPath("grasp_box.txt"));
+  const auto b = bridges::loadRecording(dataPath("grasp_box.txt"));
+  EXPECT_EQ(a.format, "synthetic");
+  EXPECT_TRUE(a.has_left && a.has_right);
+  EXPECT_NEAR(a.mean_rate_hz, 100.0, 1e-6);
+  ASSERT_EQ(a.frames.size(), b.frames.size());
+  ASSERT_GT(a.frames.size(), 500u);
+  for (size_t i = 0; i < a.frames.size(); ++i) {
+    ASSERT_EQ(a.frames[i].timestamp_us, b.frames[i].timestamp_us);
+    ASSERT_EQ(a.frames[i].hands.size(), 2u) << "frame " << i;  // both tracked throughout
+    ASSERT_EQ(b.frames[i].hands.size(), 2u);
+    for (size_t k = 0; k < 2; ++k) {
+      EXPECT_EQ(a.frames[i].hands[k].right, b.frames[i].hands[k].right);
+      EXPECT_EQ(a.frames[i].hands[k].X_W_palm.p, b.frames[i].hands[k].X_W_palm.p);
+      EXPECT_EQ(a.frames[i].hands[k].X_W_palm.q.coeffs(), b.frames[i].hands[k].X_W_palm.q.coeffs());
+      EXPECT_EQ(a.frames[i].hands[k].joints_W, b.frames[i].hands[k].joints_W);
+    }
+  }
+  const Vec3 box_centre(0.0, 0.03, 0.195);
+  const double half_x = 0.04;
+  // The palm side of the hand is the palm frame's -z (the fingers flex that way).
+  auto palmNormal = [](const bridges::TrackedHand& h) -> Vec3 { return -(h.X_W_palm.q * Vec3::UnitZ()); };
+  double r_x_prev = 1.0, l_x_prev = -1.0, r_min = 1.0, l_max = -1.0, facing_min = 1.0, z_rise = 0.0;
+  size_t facing_frames = 0;
+  for (size_t i = 0; i < a.frames.size(); ++i) {
+    const bridges::TrackedHand* r = bridges::handOfSide(a.frames[i], true);
+    const bridges::TrackedHand* l = bridges::handOfSide(a.frames[i], false);
+    ASSERT_TRUE(r && l);
+    const Vec3 pr = r->X_W_palm.p, pl = l->X_W_palm.p;
+    EXPECT_GT(pr.x(), 0.0);  // the right hand stays on +X, the left on -X: opposite sides
+    EXPECT_LT(pl.x(), 0.0);
+    EXPECT_EQ(pr.z(), pl.z()) << "frame " << i;      // they move up and down together
+    EXPECT_EQ(pr.x(), -pl.x()) << "frame " << i;     // mirror images about the box's plane x = 0
+    r_min = std::min(r_min, pr.x());
+    l_max = std::max(l_max, pl.x());
+    z_rise = std::max(z_rise, pr.z() - a.frames[0].hands[0].X_W_palm.p.z());
+    const double t = static_cast<double>(i) / a.mean_rate_hz;
+    if (t > 0.6 && t < 4.0) {  // turned palm to palm (after the roll, before the release)
+      ++facing_frames;
+      facing_min = std::min({facing_min, palmNormal(*r).dot(-Vec3::UnitX()), palmNormal(*l).dot(Vec3::UnitX())});
+    }
+    if (t > 0.7 && t < 2.0) {  // approach and close: the palms move toward the box, never away
+      EXPECT_LE(pr.x(), r_x_prev + 1e-15) << "frame " << i;
+      EXPECT_GE(pl.x(), l_x_prev - 1e-15) << "frame " << i;
+    }
+    r_x_prev = pr.x();
+    l_x_prev = pl.x();
+  }
+  std::printf("[figure] synthetic.grasp.palm_target_inside_face_m = %.4f (palm surface 0.013 from the centre)\n",
+              half_x + 0.013 - r_min);
+  EXPECT_GT(facing_frames, 300u);
+  EXPECT_GT(facing_min, 1.0 - 1e-9);                       // palm normals along -X (right) and +X (left)
+  EXPECT_NEAR(r_min, 0.043, 1e-12);                        // closest: palm surfaces 1 cm into the box's sides
+  EXPECT_NEAR(l_max, -0.043, 1e-12);
+  EXPECT_LT(r_min - 0.013, half_x);                        // targets inside the box: a squeeze
+  EXPECT_NEAR(z_rise, 0.05, 1e-12);                        // the scripted lift
+  EXPECT_LT(box_centre.x() + half_x, 0.15);                // started clear of the box
+  // The retargeter accepts both turned hands.
+  for (const char* m : {"hand16_right", "hand16_left"}) {
+    const bool right = std::string(m).find("right") != std::string::npos;
+    const leap::Retargeter rt(loadHandModel(std::string(GODHAND_MODELS_DIR) + "/" + m + ".pbtxt"));
+    std::vector<Pose> t;
+    std::vector<unsigned char> d;
+    EXPECT_EQ(rt.targets(*bridges::handOfSide(a.frames[150], right), &t, &d), 0) << m;
+  }
 }
