@@ -371,10 +371,10 @@ int main(int argc, char** argv) {
     for (size_t h = 0; h < models.size(); ++h) {
       retarget.push_back(sides[h] < 2 ? std::make_unique<leap::Retargeter>(*models[h]) : nullptr);
       // A model of the other side would be refused by the retargeter at the hand's first frame.
-      const std::optional<bool> right = retarget.back() ? retarget.back()->modelIsRight() : std::nullopt;
-      if (right && *right != (sides[h] == 0))
+      const std::optional<bool> is_right = retarget.back() ? retarget.back()->modelIsRight() : std::nullopt;
+      if (is_right && *is_right != (sides[h] == 0))
         fail(std::string(sides[h] == 0 ? "--hand-model " + args.right_model : "--left-hand-model " + args.left_model) + ": model '" +
-             models[h]->name + "' is a " + (*right ? "right" : "left") + " hand, but it would be driven by the recording's " +
+             models[h]->name + "' is a " + (*is_right ? "right" : "left") + " hand, but it would be driven by the recording's " +
              (sides[h] == 0 ? "right" : "left") + " hand (give the " + (sides[h] == 0 ? "right" : "left") + " model, e.g. deploy/models/hand16_" +
              (sides[h] == 0 ? "right" : "left") + ".pbtxt)");
     }
