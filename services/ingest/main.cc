@@ -311,6 +311,7 @@ int main(int argc, char** argv) {
       out.stamp().source_time_ns(t_source);
       out.tracked(th != nullptr || tool_seen);
       out.confidence(static_cast<float>(quality));
+      out.tracker_time_us(f.timestamp_us);
       out.targets().clear();
       out.driven().clear();
       if (th || tool_seen) {
