@@ -656,6 +656,15 @@ bool Writer<T>::write(const T& sample) {
 }
 
 template <class T>
+bool Writer<T>::waitForAcknowledgments(std::chrono::milliseconds timeout) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  if (impl_->writer == nullptr) return false;
+  const long long ms = std::max<long long>(0, timeout.count());
+  const eprosima::fastrtps::Duration_t d(static_cast<std::int32_t>(ms / 1000), static_cast<std::uint32_t>((ms % 1000) * 1000000));
+  return impl_->writer->wait_for_acknowledgments(d) == ReturnCode_t::RETCODE_OK;
+}
+
+template <class T>
 int Writer<T>::matched() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   if (impl_->writer == nullptr) return 0;

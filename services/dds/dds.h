@@ -137,6 +137,10 @@ class Writer {
   // IDL bound (checked here: fastddsgen's serializer does not), a serialization or Fast DDS
   // error, or the participant is gone. Never throws.
   bool write(const T& sample);
+  // Waits up to `timeout` until every matched reliable reader has acknowledged every sample
+  // written (true; at once for best-effort or no readers), false on the timeout. A process about
+  // to exit calls it so that its last samples are not lost with the writer.
+  bool waitForAcknowledgments(std::chrono::milliseconds timeout);
   int matched() const;                 // matched readers now
   QosInfo qos() const;
   std::uint64_t written() const;

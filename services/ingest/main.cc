@@ -224,9 +224,19 @@ int main(int argc, char** argv) {
   if (live_source) std::fprintf(stderr, "ingest: live source %s: receiving\n", source_spec.c_str());
   std::map<std::string, std::uint64_t> source_rejects;  // reasons already passed to service.reject
   auto syncRejects = [&] {
-    for (const auto& [reason, n] : source->stats().by_reason)
+    for (const auto& [reason, n] : reasonMap(source->stats().by_reason))
       for (std::uint64_t& have = source_rejects[reason]; have < n; ++have) service.reject("source: " + reason);
   };
+  // Every heartbeat from here carries the source's counts of this run (the launch report's
+  // `source`, summed there over ingest runs).
+  service.sourceCounts(run, [&source] {
+    const bridges::SourceStats ss = source->stats();
+    SourceCounts c;
+    c.received = ss.received;
+    c.accepted = ss.frames;
+    c.rejected = reasonMap(ss.by_reason);
+    return c;
+  });
   auto publishUntracked = [&] {  // a silent source: every cluster's hand untracked (held downstream)
     ++k;
     for (size_t c = 0; c < C; ++c) {
@@ -246,7 +256,11 @@ int main(int argc, char** argv) {
   // 1: a frame in f, 0: the end (recording over, or --duration), -1: stop requested.
   auto nextFrame = [&]() -> int {
     if (duration > 0.0 && elapsed() >= duration) return 0;
-    if (!live_source) return source->next(&f) ? 1 : 0;
+    if (!live_source) {  // a recording: its rejections count as a live source's do (services.ingest.rejected)
+      const bool more = source->next(&f);
+      syncRejects();
+      return more ? 1 : 0;
+    }
     for (;;) {
       if (source->next(&f)) {
         // Real time: when several frames queued up (a burst, or the start barrier), only the
@@ -336,6 +350,7 @@ int main(int argc, char** argv) {
       return service.finish(3, "lock-step: no HandState of the last frame " + std::to_string(k) + " within the deadline");
     }
   }
+  syncRejects();
   const bridges::SourceStats ss = source->stats();
   std::fprintf(stderr, "ingest: source done: %llu frames; %s\n", static_cast<unsigned long long>(ss.frames), ss.detail.c_str());
   std::string by_reason;

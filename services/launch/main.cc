@@ -35,6 +35,7 @@
 #include "common/lab_config.h"
 #include "common/render.h"
 #include "common/signals.h"
+#include "common/source_counts.h"
 #include "common/supervisor.h"
 #include "dds/dds.h"
 #include "dds/topics.h"
@@ -454,6 +455,7 @@ int main(int argc, char** argv) {
   std::printf("launch: service logs in %s\n", log_dir.c_str());
   std::fflush(stdout);
   std::map<std::string, msg::ServiceStatus> status;
+  SourceTally source_tally;  // the ingest's source counts, per ingest run (summed in the report)
   Supervisor sup;
   const Clock::time_point t_start = Clock::now();
   Watchdog watchdog(silent_after, t_start);
@@ -495,6 +497,9 @@ int main(int argc, char** argv) {
       const std::string name = s.service().to_string();
       status[name] = s;
       watchdog.beat(name, Clock::now());
+      std::uint64_t source_run = 0;
+      const SourceCounts counts = svc::fromWire(s.source(), &source_run);
+      source_tally.update(source_run, counts);  // run 0: not a tracker source
     }
   };
   try {
@@ -1099,6 +1104,9 @@ int main(int argc, char** argv) {
   }
   if (runs.empty() && n_frames > 0) expected[0] = static_cast<std::uint64_t>(n_frames);  // nothing came at all: all lost
   rep.ingest_runs = runs.size();
+  rep.have_source = source_tally.any();
+  rep.source = source_tally.total();
+  rep.source_runs = source_tally.runs();
   std::uint64_t min_fresh = ~0ull;
   for (size_t c = 0; c < C; ++c) {
     rep.clusters.push_back(lab.clusters[c].name);

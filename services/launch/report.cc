@@ -16,6 +16,16 @@ std::string secs(double s) {
 nlohmann::json orNull(double s) { return s < 0 ? nlohmann::json(nullptr) : nlohmann::json(s); }
 }  // namespace
 
+nlohmann::json sourceJson(const SourceCounts& c, std::size_t runs) {
+  nlohmann::json rejected = nlohmann::json::object();
+  for (const auto& [reason, n] : c.rejected) rejected[reason] = n;
+  return {{"received", c.received}, {"accepted", c.accepted}, {"rejected", rejected}, {"rejected_total", c.rejectedTotal()},
+          {"ingest_runs", runs}};
+}
+
+namespace {
+}  // namespace
+
 void printSummary(const RunReport& r) {
   std::printf("launch: %s run of %.1f s: %llu of %llu frames delivered fresh in every cluster%s, %ld hand states received (%ld stale)\n",
               r.lockstep ? "lock-step" : "live", r.run_s, static_cast<unsigned long long>(r.frames_complete),
@@ -27,6 +37,8 @@ void printSummary(const RunReport& r) {
                 static_cast<unsigned long long>(d.expected), static_cast<unsigned long long>(d.fresh),
                 static_cast<unsigned long long>(d.stale), static_cast<unsigned long long>(d.lost));
   }
+  if (r.have_source) std::printf("  %s\n", describeSource(r.source, r.source_runs).c_str());
+  else std::printf("  source: no counts from the ingest (no heartbeat with its source arrived)\n");
   if (r.old_unmarked > 0)
     std::printf("  WARNING: %ld hand states arrived older than %.2f s without the stale flag (counted stale)\n", r.old_unmarked,
                 r.stale_after_s + 0.1);
@@ -141,6 +153,7 @@ nlohmann::json reportJson(const RunReport& r) {
   j["stale_states"] = r.stale_states;
   j["old_unmarked_states"] = r.old_unmarked;
   j["ingest_runs"] = r.ingest_runs;
+  j["source"] = r.have_source ? sourceJson(r.source, r.source_runs) : nlohmann::json(nullptr);
   nlohmann::json delivery = nlohmann::json::object();
   for (size_t c = 0; c < r.clusters.size() && c < r.delivery.size(); ++c)
     delivery[r.clusters[c]] = {{"expected", r.delivery[c].expected}, {"fresh", r.delivery[c].fresh},

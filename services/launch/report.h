@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/delivery.h"
+#include "common/source_counts.h"
 #include "common/watchdog.h"
 #include "pipeline/run_metrics.h"
 
@@ -50,6 +51,11 @@ struct RunReport {
   std::uint64_t frames_complete = 0;    ///< lock-step: frames with every cluster's state; live: min fresh over clusters
   std::uint64_t expected_frames = 0;    ///< per cluster
   std::uint64_t ingest_runs = 0;
+  /// The tracker source's counts from the ingest's heartbeats (ServiceStatus.source), summed over
+  /// the ingest runs that sent any (source_runs); have_source false: none came (written null).
+  bool have_source = false;
+  SourceCounts source;
+  std::size_t source_runs = 0;
   double replay_span_s = 0;             ///< first to last fresh HandState received
   double frames_per_s = 0;              ///< fresh frames (min over clusters) / replay_span_s
   long states = 0, stale_states = 0, held_states = 0;
@@ -116,5 +122,8 @@ struct RunReport {
 
 void printSummary(const RunReport& r);
 nlohmann::json reportJson(const RunReport& r);
+/// The report's `source` block: {received, accepted, rejected: {REASON: n}, rejected_total,
+/// ingest_runs (the runs summed)}.
+nlohmann::json sourceJson(const SourceCounts& c, std::size_t runs);
 
 }  // namespace godhand

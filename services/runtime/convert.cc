@@ -353,4 +353,27 @@ void describeScene(const Scene& scene, const std::string& file, msg::SceneDescri
   }
 }
 
+void toWire(std::uint64_t run, const SourceCounts& c, msg::SourceCounts* out) {
+  out->run(run);
+  out->received(c.received);
+  out->accepted(c.accepted);
+  out->rejected().clear();
+  for (const auto& [reason, n] : boundReasons(c.rejected)) {
+    msg::ReasonCount r;
+    r.reason(reason);
+    r.count(n);
+    out->rejected().push_back(r);
+  }
+}
+
+SourceCounts fromWire(const msg::SourceCounts& in, std::uint64_t* run) {
+  SourceCounts c;
+  if (run) *run = in.run();
+  c.received = in.received();
+  c.accepted = in.accepted();
+  for (const msg::ReasonCount& r : in.rejected())
+    if (r.count() > 0) c.rejected[r.reason().to_string()] += r.count();
+  return c;
+}
+
 }  // namespace godhand::svc

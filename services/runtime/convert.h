@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "common/source_counts.h"
 #include "godhand.h"  // generated wire types
 #include "pipeline/stages.h"
 
@@ -46,5 +47,10 @@ void toWire(const SceneSnapshot& s, msg::SceneState* out);
 bool fromWire(const msg::SceneState& in, int objects, SceneSnapshot* out, std::string* why);
 
 void describeScene(const Scene& scene, const std::string& file, msg::SceneDescription* out);
+
+// ingest -> the launcher (ServiceStatus.source): bounded by boundReasons (the total is kept).
+void toWire(std::uint64_t run, const SourceCounts& c, msg::SourceCounts* out);
+/// The counts and their run (0: the sample carries no source).
+SourceCounts fromWire(const msg::SourceCounts& in, std::uint64_t* run);
 
 }  // namespace godhand::svc

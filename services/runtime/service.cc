@@ -95,6 +95,11 @@ std::uint64_t Service::rejected() const {
   return n;
 }
 
+void Service::sourceCounts(std::uint64_t run, std::function<SourceCounts()> provider) {
+  source_run_ = run;
+  source_counts_ = std::move(provider);
+}
+
 void Service::processed(std::uint64_t frame, std::int64_t source_time_ns) {
   frame_ = frame;
   ++frames_since_;
@@ -123,6 +128,7 @@ void Service::heartbeat(const std::string& state, bool force) {
   s.late(late);
   s.deadline_misses(deadline_misses);
   if (!status_) return;
+  if (source_counts_) toWire(source_run_, source_counts_(), &s.source());
   status_->write(s);
   frames_since_ = 0;
   latency_.v.clear();
@@ -155,6 +161,9 @@ int Service::finish(int code, const std::string& why) {
   for (const auto& r : rejects_)
     std::fprintf(stderr, "%s:   rejected %llu: %s\n", name_.c_str(), static_cast<unsigned long long>(r.second), r.first.c_str());
   heartbeat(code == 0 ? "stopping" : "failed", true);
+  // The last heartbeat carries the final counters (the launch report's): not lost with the writer
+  // when the process exits right after (a short lock-step run had sent only "starting" before).
+  if (status_) status_->waitForAcknowledgments(std::chrono::milliseconds(1000));
   return code;
 }
 

@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -13,6 +14,7 @@
 
 #include "common/cli.h"
 #include "common/lab_config.h"
+#include "common/source_counts.h"
 #include "dds/dds.h"
 #include "dds/topics.h"
 #include "godhand.h"
@@ -70,6 +72,9 @@ class Service {
   std::uint64_t samples_in = 0, samples_out = 0, late = 0, deadline_misses = 0;
   void reject(const std::string& reason);  ///< one rejected input, by reason (first few logged)
   std::uint64_t rejected() const;
+  /// The ingest: its tracker source's counts and the run they belong to, sent with every heartbeat
+  /// (ServiceStatus.source; without a provider, run 0: no source).
+  void sourceCounts(std::uint64_t run, std::function<SourceCounts()> provider);
   /// A frame done: its source time (for the latency window).
   void processed(std::uint64_t frame, std::int64_t source_time_ns);
 
@@ -91,6 +96,8 @@ class Service {
   std::unique_ptr<dds::Participant> participant_;
   std::unique_ptr<dds::Writer<msg::ServiceStatus>> status_;
   std::map<std::string, std::uint64_t> rejects_;
+  std::uint64_t source_run_ = 0;
+  std::function<SourceCounts()> source_counts_;
   std::uint64_t frame_ = 0, frames_since_ = 0;
   Window latency_;
   double last_latency_us_ = 0.0;

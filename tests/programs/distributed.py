@@ -272,6 +272,18 @@ def case_drills(recording):
     check(ds.get("ingest", {}).get("killed_frame", 0) >= 40, f"ingest killed at frame >= 40 ({ds.get('ingest')})")
     check(ds.get("resolver", {}).get("killed_s") is not None and ds["resolver"]["killed_s"] >= 1.0, "resolver killed >= 1 s into the replay")
     check(j.get("ingest_runs") == 2, f"the restarted ingest replayed again: 2 ingest runs ({j.get('ingest_runs')})")
+    # The source's counts are summed over the ingest runs: the restarted run read the whole
+    # recording, the killed one adds what its last heartbeat had counted (0 when it had sent none).
+    src = j.get("source") or {}
+    print("report source block:", src, flush=True)
+    m = re.search(r"source \S+ \((\d+) frames at", r.stdout)
+    n = int(m.group(1)) if m else None
+    check(n is not None and src.get("ingest_runs") in (1, 2) and src.get("accepted", 0) >= n,
+          f"source counts summed over the ingest runs: accepted {src.get('accepted')} >= the restarted run's {n} ({src})")
+    check(n is not None and src.get("received") == src.get("ingest_runs", 0) * n,
+          f"each run read the whole recording: received {src.get('received')} == {src.get('ingest_runs')} x {n}")
+    if src.get("ingest_runs") == 2:
+        check("over 2 ingest runs (summed)" in r.stdout, "the summary says the source counts are summed over 2 ingest runs")
     check("-1.00" not in r.stdout, "no unset time printed as -1.00")
     check(j.get("shm_segments_left", -1) == 0 and j.get("shm_segments_removed", 0) >= 1,
           f"the killed processes' segments were removed by the launcher ({j.get('shm_segments_removed')}), none left")

@@ -7,7 +7,11 @@ cases:
                                    over UDP loopback by SENDER (dtrack-send.py) with every fault;
                                    --check passes (no penetration, frames not lost), the ingest's
                                    rejection counts equal the sender's fault counts, --record's file
-                                   replays in lock-step to the same accepted frames
+                                   replays in lock-step to the same accepted frames; the report's
+                                   `source` block equals the ingest's counts
+  record-replay DTRACK_FILE SENDER godhand-ingest --record alone, its raw file replayed twice in
+                                   lock-step: the live counts again (report `source`), the same
+                                   result hash twice and equal to godhand-bench --recording's
   rejects                          godhand-ingest's bad configurations: one line, exit 2
   formats DATA_DIR                 lock-step runs through the lab with --check of a .dtrack file, the
                                    Aria CSV sample, OpenXR and MediaPipe JSON Lines and a synthetic
@@ -76,6 +80,12 @@ def ingest_source_line(log):
     return dict(received=int(m.group(2)), accepted=int(m.group(3)), rejected=int(m.group(4)), reasons=reasons)
 
 
+def source_block_equals(src, st):
+    """The report's `source` block equals the ingest's printed counts (ingest_source_line)."""
+    return (src.get("received") == st["received"] and src.get("accepted") == st["accepted"]
+            and src.get("rejected") == st["reasons"] and src.get("rejected_total") == st["rejected"])
+
+
 def live_with_faults(launch_args, dtrack_file, sender, seed, duration, report, logs, send_log):
     """godhand-launch on dtrack://127.0.0.1:PORT (launch_args added) fed by SENDER with every fault
     once the ingest is past its start barrier (it prints "receiving"); returns (exit code, output)."""
@@ -111,7 +121,7 @@ def case_live_dtrack(dtrack_file, sender):
     logs = os.path.join(TMP, "logs")
     report = os.path.join(TMP, "live.json")
     send_log = os.path.join(TMP, "send.jsonl")
-    code, _ = live_with_faults([], dtrack_file, sender, 11, 9, report, logs, send_log)
+    code, launch_out = live_with_faults([], dtrack_file, sender, 11, 9, report, logs, send_log)
     check(code == 0, f"godhand-launch --check exited 0 (was {code})")
     j = json.load(open(report)) if os.path.exists(report) else {}
     check(j.get("penetration_max_m", 1) <= j.get("margin_m", 0), f"penetration-free ({j.get('penetration_max_m')} m)")
@@ -140,7 +150,18 @@ def case_live_dtrack(dtrack_file, sender):
         check(st["accepted"] + stale == n["send"] + n["reorder"],
               f"every clean datagram accepted: accepted {st['accepted']} + stale {stale} == clean {n['send']} + reordered {n['reorder']}")
         check(st["accepted"] + st["rejected"] == st["received"], "accepted + rejected == received")
+        # The launch report's `source` block (the ingest's heartbeats over DDS): the same counts.
+        src = j.get("source") or {}
+        print("report source block:", src, flush=True)
+        check(source_block_equals(src, st), f"report source == the ingest's counts ({src} vs {st})")
+        check(src.get("rejected", {}).get("parse error") == n["garbage"] and src.get("rejected", {}).get("NaN/Inf") == n["nan"]
+              and src.get("rejected", {}).get("oversized") == n["huge"]
+              and src.get("rejected", {}).get("incomplete (truncated)") == n["truncate"],
+              "report source: every fault of the sender counted by reason")
+        check(src.get("ingest_runs") == 1, "report source: one ingest run")
     check("silent for" in log, "the silence after the stream ended was reported")
+    check(re.search(r"^  source: received \d+, accepted \d+, rejected \d+ \(.*parse error \d+", launch_out, re.M) is not None,
+          "the launch summary prints the source line")
 
 
 def case_record_replay(dtrack_file, sender):
@@ -168,14 +189,32 @@ def case_record_replay(dtrack_file, sender):
     check(st is not None and st["received"] > 0, "datagrams came in")
     m = re.search(r"recorded (\d+) datagrams", err)
     check(m is not None and st is not None and int(m.group(1)) == st["received"], "every received datagram was recorded")
-    report = os.path.join(TMP, "replay.json")
-    r = subprocess.run([os.path.join(BIN, "godhand-launch"), "--domain", DOMAIN, "--lockstep", "--recording", raw, "--check",
-                        "--quiet", "--json", report], capture_output=True, text=True, timeout=200)
-    print(r.stdout[-2500:] + r.stderr[-1500:], flush=True)
-    check(r.returncode == 0, "the raw recording replays in lock-step through the lab with --check")
-    j = json.load(open(report)) if os.path.exists(report) else {}
-    check(st is not None and j.get("frames") == st["accepted"], f"replay frames {j.get('frames')} == live accepted {st and st['accepted']}")
-    check(j.get("shm_segments_left", -1) == 0, "no shared-memory segment left behind")
+    hashes = []
+    for i in (1, 2):  # two lock-step replays of the same file: the same hands, bit for bit
+        report = os.path.join(TMP, f"replay{i}.json")
+        r = subprocess.run([os.path.join(BIN, "godhand-launch"), "--domain", DOMAIN, "--lockstep", "--recording", raw, "--check",
+                            "--quiet", "--json", report], capture_output=True, text=True, timeout=200)
+        print(r.stdout[-2500:] + r.stderr[-1500:], flush=True)
+        check(r.returncode == 0, f"replay {i}: the raw recording replays in lock-step through the lab with --check")
+        j = json.load(open(report)) if os.path.exists(report) else {}
+        check(st is not None and j.get("frames") == st["accepted"], f"replay {i}: frames {j.get('frames')} == live accepted {st and st['accepted']}")
+        check(j.get("shm_segments_left", -1) == 0, f"replay {i}: no shared-memory segment left behind")
+        # The replay's source sees the datagrams in their recorded order: the live run's counts again.
+        src = j.get("source") or {}
+        check(st is not None and source_block_equals(src, st), f"replay {i}: report source {src} == the live ingest's counts {st}")
+        check(st is not None and j.get("services", {}).get("ingest", {}).get("rejected") == st["rejected"],
+              f"replay {i}: services.ingest.rejected {j.get('services', {}).get('ingest', {}).get('rejected')} == {st and st['rejected']}")
+        check(re.search(r"^  source: received \d+, accepted \d+, rejected \d+ ", r.stdout, re.M) is not None,
+              f"replay {i}: the summary prints the source line")
+        hashes.append(j.get("result_hash"))
+    bench_json = os.path.join(TMP, "replay-bench.json")
+    b = subprocess.run([os.path.join(BIN, "godhand-bench"), "--recording", raw, "--quiet", "--json", bench_json],
+                       capture_output=True, text=True, timeout=200)
+    print(b.stdout[-1000:] + b.stderr[-1000:], flush=True)
+    h = json.load(open(bench_json)).get("result_hash") if b.returncode == 0 and os.path.exists(bench_json) else None
+    print("result hashes: replays", hashes, "godhand-bench", h, flush=True)
+    check(hashes[0] is not None and hashes[0] == hashes[1], f"two lock-step replays: the same result hash ({hashes})")
+    check(h is not None and hashes[0] == h, f"lock-step replay result hash {hashes[0]} == godhand-bench --recording's {h}")
 
 
 def case_rejects():

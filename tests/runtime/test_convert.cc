@@ -111,6 +111,30 @@ TEST(Convert, TargetsRejectBadCountsAndUndrivenPalm) {
   EXPECT_NE(why.find("palm"), std::string::npos) << why;
 }
 
+TEST(Convert, SourceCountsRoundTripWithinTheWireBounds) {
+  SourceCounts c;
+  c.received = 500;
+  c.accepted = 400;
+  for (int i = 0; i < 20; ++i) c.rejected["reason " + std::to_string(10 + i)] = 5;  // 20 reasons: 4 over the bound
+  c.rejected[std::string(70, 'z')] = 1;                                             // a name over string<64>
+  msg::SourceCounts w;
+  svc::toWire(99, c, &w);
+  EXPECT_EQ(w.rejected().size(), kWireReasons);
+  std::uint64_t run = 0;
+  const SourceCounts back = svc::fromWire(w, &run);
+  EXPECT_EQ(run, 99u);
+  EXPECT_EQ(back.received, 500u);
+  EXPECT_EQ(back.accepted, 400u);
+  EXPECT_EQ(back.rejectedTotal(), c.rejectedTotal());  // bounded, nothing lost
+  EXPECT_EQ(back.rejected.count(kOtherReasons), 1u);
+  for (const auto& [reason, n] : back.rejected) EXPECT_LE(reason.size(), kWireReasonChars);
+
+  SourceCounts small{12, 9, {{"parse error", 2}, {"NaN/Inf", 1}}};
+  svc::toWire(7, small, &w);
+  EXPECT_EQ(svc::fromWire(w, &run), small);  // within the bounds: exact
+  EXPECT_EQ(run, 7u);
+}
+
 TEST(Convert, ForcesAndSceneRoundTrip) {
   ForceSet f;
   f.frame = 3;

@@ -376,6 +376,10 @@ TEST(DdsRoundTrip, EveryTopicTypeAtItsBoundsArrives) {
   msg::ServiceStatus status;
   status.service("solver/right");
   status.state("running");
+  status.source().run(42);
+  status.source().rejected().resize(16);  // the ingest's source counts at their bounds
+  status.source().rejected()[15].reason(std::string(64, 'r'));
+  status.source().rejected()[15].count(92);
 
   auto roundTrip = [&](auto sample, const char* topic, const char* profile, auto check) {
     using T = decltype(sample);
@@ -384,6 +388,7 @@ TEST(DdsRoundTrip, EveryTopicTypeAtItsBoundsArrives) {
     dds::Reader<T> r(b, topic, profile);
     ASSERT_TRUE(waitFor([&] { return w.matched() == 1 && r.matched() == 1; }, kMatchDeadline));
     ASSERT_TRUE(w.write(sample));
+    EXPECT_TRUE(w.waitForAcknowledgments(std::chrono::milliseconds(5000)));  // matched: acknowledged (at once when best-effort)
     std::vector<T> got;
     ASSERT_TRUE(takeN(b, r, 1, &got, kDataDeadline));
     check(got[0]);
@@ -417,6 +422,10 @@ TEST(DdsRoundTrip, EveryTopicTypeAtItsBoundsArrives) {
   roundTrip(status, dds::topic::kServiceStatus, dds::profile::kStatus, [](const msg::ServiceStatus& x) {
     EXPECT_EQ(x.service().to_string(), "solver/right");
     EXPECT_EQ(x.state().to_string(), "running");
+    EXPECT_EQ(x.source().run(), 42u);
+    ASSERT_EQ(x.source().rejected().size(), 16u);
+    EXPECT_EQ(x.source().rejected()[15].reason().to_string(), std::string(64, 'r'));
+    EXPECT_EQ(x.source().rejected()[15].count(), 92u);
   });
 }
 
