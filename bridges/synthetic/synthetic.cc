@@ -133,18 +133,13 @@ Script parseScript(const std::string& text, const std::string& name) {
         c.side = side(1);
         c.seconds = seconds(2);
         c.p = position(3);
-      } else if (c.op == "curl") {
+      } else if (c.op == "curl" || c.op == "roll") {  // SIDE S VALUE
         arity(4);
         c.side = side(1);
         c.seconds = seconds(2);
         c.value = num(3);
-        if (!(c.value >= 0.0 && c.value <= 1.0)) fail(name, n, "curl fraction must be in [0, 1]");
-      } else if (c.op == "roll") {
-        arity(4);
-        c.side = side(1);
-        c.seconds = seconds(2);
-        c.value = num(3);
-        if (!(c.value >= -180.0 && c.value <= 180.0)) fail(name, n, "roll angle must be in [-180, 180] degrees");
+        if (c.op == "curl" && !(c.value >= 0.0 && c.value <= 1.0)) fail(name, n, "curl fraction must be in [0, 1]");
+        if (c.op == "roll" && !(c.value >= -180.0 && c.value <= 180.0)) fail(name, n, "roll angle must be in [-180, 180] degrees");
       } else if (c.op == "hold") {
         arity(2);
         c.seconds = seconds(1);
