@@ -40,6 +40,14 @@ const char* fingerName(int finger);
 /// Joint indices in TrackedHand::joints_W[finger].
 enum FingerJoint : int { kMcp = 0, kPip = 1, kDip = 2, kTip = 3 };
 
+using FingerJoints = std::array<std::array<Vec3, 4>, kFingerCount>;
+/// All joints at the origin (Eigen's Vec3 default constructor leaves its storage unset).
+inline FingerJoints zeroFingerJoints() {
+  FingerJoints j;
+  for (auto& finger : j) for (Vec3& p : finger) p.setZero();
+  return j;
+}
+
 /// One tracked hand, world frame, metres.
 struct TrackedHand {
   int id = -1;
@@ -52,7 +60,7 @@ struct TrackedHand {
   /// Per finger (thumb..pinky): mcp, pip, dip, tip. For the thumb Leap's "mcp" is the carpo-
   /// metacarpal end of its first bone, so the three thumb segments are metacarpal, proximal,
   /// distal (like the model's thumb.1..3).
-  std::array<std::array<Vec3, 4>, kFingerCount> joints_W{};
+  FingerJoints joints_W = zeroFingerJoints();
 };
 
 /// One 6-DOF tracked rigid body (a DTrack `6d` body: a tool, a prop), world frame, metres.
