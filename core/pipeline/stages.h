@@ -37,8 +37,8 @@ struct PhysicsParams;
 inline StepParams pipelineStepParams() {
   StepParams p;
   p.max_step_translation = 0.03;
-  p.max_step_rotation = 0.25;
-  p.max_step_rotation_in_contact = 0.25;
+  p.max_step_rotation = 0.5;
+  p.max_step_rotation_in_contact = 0.5;
   p.clamp_contact_bodies_apart = true;
   return p;
 }
@@ -74,7 +74,7 @@ struct PipelineParams {
   /// Solve -> sweep rounds per frame (Ortega et al., Redon; METHOD.md §2 step 5): after a clip
   /// the contacts at the clipped pose are found and the rest of the motion towards the same
   /// targets is solved and swept again, at most this many rounds in all.
-  int max_substeps = 2;
+  int max_substeps = 3;
   /// rad (0 = off): a body whose last sweep hit at once (TOC < 1e-3, from outside) may turn at
   /// most this much in its next solved step (StepInput::rotation_cap): resting on a surface, a
   /// larger turn about its origin swings its contact point into the surface and the whole round

