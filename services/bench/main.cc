@@ -84,7 +84,7 @@ const char* kUsage =
     "  --json OUT            write the report as JSON\n"
     "  --poses OUT.csv       write every God object's world pose every frame, and its target's\n"
     "                        (columns tpx..tqz, empty when the body has no target that frame)\n"
-    "  --substeps N          solve -> sweep rounds per frame (default 3)\n"
+    "  --substeps N          solve -> sweep rounds per frame (default %SUBSTEPS%)\n"
     "  --compare mujoco      also drive the same hands with MuJoCo (each body welded to a mocap target) on the\n"
     "                        same frames, stepped after godhand in each frame, and print both engines' figures\n"
     "                        side by side (JSON: \"compare\"); static scenes only. Needs a build with MuJoCo\n"
@@ -96,8 +96,8 @@ const char* kUsage =
     "                        cores; 1: one after the other). The results are the same for every N\n"
     "  --stuck-rotation RAD  a body whose last sweep hit at once may turn at most RAD in its next step\n"
     "                        (default 0.05; 0 = no cap)\n"
-    "  --contact-rotation R  most a body within 5 mm of a contact turns per frame, rad (default 0.5)\n"
-    "  --max-rotation R, --max-translation M  most any body turns (rad) / moves (m) per frame (0.5, 0.03)\n"
+    "  --contact-rotation R  most a body within 5 mm of a contact turns per frame, rad (default %CONTACT_ROT%)\n"
+    "  --max-rotation R, --max-translation M  most any body turns (rad) / moves (m) per frame (%MAX_ROT%, %MAX_TRANS%)\n"
     "  --contacts-per-pair K contacts kept per (God object, scene object) (default 8)\n"
     "  --stop-distance M     the sweep stops a body this far from a surface, m (default 2.5e-5)\n"
     "  --sweep-iterations N  conservative-advancement iterations per sweep before it stops where verified (default 100)\n"
@@ -117,6 +117,23 @@ const char* kUsage =
     "                        every hand started and was not held in most of its frames, no stuck frame\n"
     "                        and frozen windows <= 5 % of the moving windows\n"
     "Exit status: 0 ok, 1 --check failed, 2 bad arguments or input (one line on stderr).\n";
+
+/// kUsage with the clamp and round defaults filled in from PipelineParams (one definition).
+std::string usageText() {
+  const PipelineParams d;
+  auto num = [](double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%g", v);
+    return std::string(b);
+  };
+  std::string u = kUsage;
+  const std::pair<const char*, std::string> fields[] = {{"%SUBSTEPS%", std::to_string(d.max_substeps)},
+                                                        {"%CONTACT_ROT%", num(d.step.max_step_rotation_in_contact)},
+                                                        {"%MAX_ROT%", num(d.step.max_step_rotation)},
+                                                        {"%MAX_TRANS%", num(d.step.max_step_translation)}};
+  for (const auto& [key, value] : fields) u.replace(u.find(key), std::strlen(key), value);
+  return u;
+}
 
 struct Args {
   std::string recording, scene, json, poses, tracker_pose, hand_sides;
@@ -178,7 +195,7 @@ Args parseArgs(int argc, char** argv) {
       return argv[++i];
     };
     if (f == "--help" || f == "-h") {
-      std::cout << kUsage;
+      std::cout << usageText();
       std::exit(0);
     } else if (f == "--recording") a.recording = value();
     else if (f == "--scene") a.scene = value();
