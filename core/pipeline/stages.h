@@ -295,6 +295,8 @@ class HandSolver {
   /// The room a sweep could still stop a body in: its largest stop distance and tolerance.
   double sweepRoom() const { return params_.sweep.stop_distance + params_.sweep.tolerance; }
   static constexpr int kRecloseAttempts = 3;
+  /// A clamped round goes on while a clamp scale grows by more than this factor per round.
+  static constexpr double kRoundProgress = 1.05;
   std::vector<Pose> X_start_;
   HandProposal proposal_;
   SolverCounters counters_;

@@ -45,7 +45,7 @@ def box_of(j):
     return boxes[0]
 
 
-j = bench("grasp", SCENE)
+j = bench("grasp", SCENE, "--check")  # --check: also no frozen hand (<= 5 % of moving windows)
 b = box_of(j)
 start, final = b["start_position_m"], b["final_position_m"]
 print(f"grasp: penetration max {j['penetration_max_m'] * 1e3:.4f} mm, joint gap {j['joint_gap_max_m']:.2e} m, "
@@ -58,7 +58,11 @@ check(j["joint_gap_max_m"] <= 1e-6, f"joint gap {j['joint_gap_max_m']:.3g} m <= 
 check(j["solver_failures"] == 0, "no solver failure")
 check(b["simulated"], "the box is simulated")
 check(b["max_displacement_m"] > 0.01, "the hands reached the box and pushed it (> 1 cm)")
-check(b["max_speed_mps"] < 1.0, f"the box is not launched (speed max {b['max_speed_mps']:.3f} < 1 m/s)")
+# Frictionless curling fingers squirt the box out along -Y (~10 cm; peak 0.84 m/s before the
+# 2026-12-02 round-progress change, 1.24 m/s after it, when the hands stopped freezing on it and
+# hold it harder). A launch is faster than that: the squeeze bug this guards against flew off at
+# 1.5 m/s with the box inside a hand (caught by the penetration check too).
+check(b["max_speed_mps"] < 1.45, f"the box is not launched (speed max {b['max_speed_mps']:.3f} < 1.45 m/s)")
 check(abs(final[2] - start[2]) < 1e-3, "the box ends standing on the table (its height within 1 mm of the start)")
 # The limitation, measured: the hands rise 5 cm with the box between them, the box does not.
 # A squeeze may wedge it up a little; lifted would be following the hands: half their rise or more.
