@@ -248,7 +248,13 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
     if (s.started_inside) *started_inside = true;
     blocked_[b] = s.hit ? 1 : 0;
     const bool stuck = params_.stuck_rotation > 0.0 && s.hit && s.toc < 1e-3 && !s.started_inside;
-    rotation_cap_[b] = stuck ? params_.stuck_rotation : std::numeric_limits<double>::infinity();
+    // Stuck again under a cap: a quarter of it next (a palm resting on a coarse mesh's ridge
+    // turns into the face beyond it however small the turn its rows allow, down to the ridge's
+    // dihedral angle; rows at the ridge point cannot see that turn).
+    const double inf = std::numeric_limits<double>::infinity();
+    rotation_cap_[b] = !stuck ? inf
+                       : rotation_cap_[b] < inf ? std::max(kMinRotationCap, 0.25 * rotation_cap_[b])
+                                                : params_.stuck_rotation;
     body_toc_[b] = s.toc;
     if ((trace_ >= 2 && (s.toc < 1.0 || collision_.penetration(model_.bodies[b].shape, X1[b]) >
                                                collision_.penetration(model_.bodies[b].shape, X0[b]) + 1e-7)) ||

@@ -281,9 +281,11 @@ class HandSolver {
   std::vector<Contact> contacts_;
   std::vector<Contact> clip_contacts_;  // scratch: contacts at a clipped pose
   std::vector<unsigned char> blocked_;  // per body: its last sweep hit (gets shell contacts)
-  // Per body: stuck_rotation where its last sweep hit at once (TOC < 1e-3, from outside), else
+  // Per body: stuck_rotation where its last sweep hit at once (TOC < 1e-3, from outside), a
+  // quarter of its last cap where it hit at once under one (down to kMinRotationCap), else
   // +inf (StepInput::rotation_cap).
   std::vector<double> rotation_cap_;
+  static constexpr double kMinRotationCap = 1e-4;  ///< rad
   std::vector<double> body_toc_;        // per body: TOC of the last sweep
   std::vector<Pose> X0_, X1_, X_clip_;
   std::vector<double> reclose_toc_;     // per body: TOC of the re-closing motion
