@@ -33,6 +33,10 @@ void ActiveSetSolver::reserve(int bodies, int rows) {
   growTo(lambda_p_, m);
   growTo(tmp_, m);
   growTo(rhs_, m);
+  growTo(yE_, m);
+  growTo(gb_, m);
+  growTo(eq_rows_, 2 * m);
+  growTo(eq_start_, static_cast<size_t>(bodies) + 1);
   growTo(dz_, static_cast<size_t>(bodies));
   growTo(absz_, static_cast<size_t>(bodies));
   growTo(kkt_scratch_, 2 * static_cast<size_t>(bodies));
@@ -46,8 +50,19 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
   const int n = static_cast<int>(passive_.size());
   double* L = L_.data();
   double* x = tmp_.data();
-  // l = L⁻¹ a with a_i = A(P_i, k): column-oriented forward substitution skipping zeros.
-  for (int i = 0; i < n; ++i) x[i] = p.A(passive_[static_cast<size_t>(i)], k);
+  // l = L⁻¹ a with a_i = A(P_i, k): column-oriented forward substitution skipping zeros. A(P_i, k)
+  // is zero unless the rows share a body: equality rows are found through their bodies, the
+  // (few) passive inequality rows are all read.
+  std::fill(x, x + n, 0.0);
+  for (const int body : {row.body0, row.body1}) {
+    if (body < 0) continue;
+    for (int e = eq_start_[static_cast<size_t>(body)]; e < eq_start_[static_cast<size_t>(body) + 1]; ++e) {
+      const int r = eq_rows_[static_cast<size_t>(e)];
+      const int pos = position_[static_cast<size_t>(r)];
+      if (pos >= 0 && pos < n) x[pos] = p.A(r, k);
+    }
+  }
+  for (int i = n_eq_; i < n; ++i) x[i] = p.A(passive_[static_cast<size_t>(i)], k);
   double ll = 0.0;
   for (int j = 0; j < n; ++j) {
     if (x[j] == 0.0) continue;
@@ -61,6 +76,7 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
   }
   const double eps = settings_.regularization * row.diag;
   double pivot2 = row.diag + eps - ll;
+  if (!(pivot2 > kIllPivot * row.diag)) ill_conditioned_ = true;
   if (!(pivot2 > eps)) pivot2 = eps;  // row (numerically) dependent on P: regularisation pivot
   if (!std::isfinite(pivot2) || !(pivot2 > 0.0)) return false;
   for (int j = 0; j < n; ++j) {
@@ -73,6 +89,13 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
   }
   L[static_cast<size_t>(n) * cap + static_cast<size_t>(n)] = std::sqrt(pivot2);
   last_[static_cast<size_t>(n)] = n;
+  if (n_eq_ > 0 || row.type == RowType::Inequality) {
+    // The row's share of the forward substitution over the equality columns (see gb_).
+    double g = row.b;
+    for (int j = 0; j < n_eq_; ++j)
+      if (yE_[static_cast<size_t>(j)] != 0.0 && x[j] != 0.0) g -= x[j] * yE_[static_cast<size_t>(j)];
+    gb_[static_cast<size_t>(n)] = g;
+  }
   passive_.push_back(k);
   position_[static_cast<size_t>(k)] = n;
   lambda_p_[static_cast<size_t>(n)] = 0.0;
@@ -128,6 +151,7 @@ void ActiveSetSolver::remove(int pos) {
   for (int i = pos + 1; i < n; ++i) {
     passive_[static_cast<size_t>(i - 1)] = passive_[static_cast<size_t>(i)];
     lambda_p_[static_cast<size_t>(i - 1)] = lambda_p_[static_cast<size_t>(i)];
+    gb_[static_cast<size_t>(i - 1)] = gb_[static_cast<size_t>(i)];
     position_[static_cast<size_t>(passive_[static_cast<size_t>(i - 1)])] = i - 1;
   }
   passive_.pop_back();
@@ -173,41 +197,82 @@ void ActiveSetSolver::accumulateAbs(const QpProblem& p, std::vector<Vec6>& out) 
   }
 }
 
-void ActiveSetSolver::solvePassive(const QpProblem& p) {
+void ActiveSetSolver::indexEqualities(const QpProblem& p) {
+  const int m = p.numRows(), nb = p.numBodies();
+  std::fill(eq_start_.begin(), eq_start_.begin() + nb + 1, 0);
+  for (int k = 0; k < m; ++k) {
+    const Row& row = p.row(k);
+    if (row.type != RowType::Equality) continue;
+    ++eq_start_[static_cast<size_t>(row.body0) + 1];
+    if (row.body1 >= 0 && row.body1 != row.body0) ++eq_start_[static_cast<size_t>(row.body1) + 1];
+  }
+  for (int b = 0; b < nb; ++b) eq_start_[static_cast<size_t>(b) + 1] += eq_start_[static_cast<size_t>(b)];
+  int* fill = reinterpret_cast<int*>(tmp_.data());  // per-body cursor (tmp_ is free here)
+  static_assert(sizeof(double) >= sizeof(int), "cursor storage");
+  for (int b = 0; b < nb; ++b) fill[b] = eq_start_[static_cast<size_t>(b)];
+  for (int k = 0; k < m; ++k) {
+    const Row& row = p.row(k);
+    if (row.type != RowType::Equality) continue;
+    eq_rows_[static_cast<size_t>(fill[row.body0]++)] = k;
+    if (row.body1 >= 0 && row.body1 != row.body0) eq_rows_[static_cast<size_t>(fill[row.body1]++)] = k;
+  }
+}
+
+void ActiveSetSolver::forward(double* x, int from) const {
   const size_t cap = static_cast<size_t>(capacity_);
   const int n = static_cast<int>(passive_.size());
   const double* L = L_.data();
-  const int* last = last_.data();
-  auto cholSolve = [&](double* x) {  // x ← (L Lᵀ)⁻¹ x, skipping each column's equality-block zeros
-    for (int j = 0; j < n; ++j) {
-      if (x[j] == 0.0) continue;
-      const double* col = L + static_cast<size_t>(j) * cap;
-      x[j] /= col[j];
-      const int end = std::min(last[j], n - 1);
-      const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
-      for (int i = j + 1; i <= gap_lo; ++i) x[i] -= col[i] * x[j];
-      for (int i = gap_hi; i <= end; ++i) x[i] -= col[i] * x[j];
-    }
-    for (int j = n - 1; j >= 0; --j) {
-      const double* col = L + static_cast<size_t>(j) * cap;
-      double acc = x[j];
-      const int end = std::min(last[j], n - 1);
-      const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
-      for (int i = j + 1; i <= gap_lo; ++i) acc -= col[i] * x[i];
-      for (int i = gap_hi; i <= end; ++i) acc -= col[i] * x[i];
-      x[j] = acc / col[j];
-    }
-  };
-  for (int i = 0; i < n; ++i) {
-    rhs_[static_cast<size_t>(i)] = p.row(passive_[static_cast<size_t>(i)]).b;
-    s_[static_cast<size_t>(i)] = rhs_[static_cast<size_t>(i)];
+  for (int j = from; j < n; ++j) {
+    if (x[j] == 0.0) continue;
+    const double* col = L + static_cast<size_t>(j) * cap;
+    x[j] /= col[j];
+    const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
+    const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
+    for (int i = j + 1; i <= gap_lo; ++i) x[i] -= col[i] * x[j];
+    for (int i = gap_hi; i <= end; ++i) x[i] -= col[i] * x[j];
   }
-  cholSolve(s_.data());
+}
+
+void ActiveSetSolver::backward(double* x) const {
+  const size_t cap = static_cast<size_t>(capacity_);
+  const int n = static_cast<int>(passive_.size());
+  const double* L = L_.data();
+  for (int j = n - 1; j >= 0; --j) {
+    const double* col = L + static_cast<size_t>(j) * cap;
+    double acc = x[j];
+    const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
+    const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
+    for (int i = j + 1; i <= gap_lo; ++i) acc -= col[i] * x[i];
+    for (int i = gap_hi; i <= end; ++i) acc -= col[i] * x[i];
+    x[j] = acc / col[j];
+  }
+}
+
+void ActiveSetSolver::forwardEqualities(const QpProblem& p) {
+  for (int i = 0; i < n_eq_; ++i) yE_[static_cast<size_t>(i)] = p.row(passive_[static_cast<size_t>(i)]).b;
+  // Only the equality block is in the factor yet: a plain forward pass over it.
+  forward(yE_.data(), 0);
+}
+
+void ActiveSetSolver::solvePassive(const QpProblem& p) {
+  const int n = static_cast<int>(passive_.size());
+  for (int i = 0; i < n; ++i) rhs_[static_cast<size_t>(i)] = p.row(passive_[static_cast<size_t>(i)]).b;
+  // The forward pass over the equality columns is cached (yE_, gb_): bit for bit what it computes.
+  for (int i = 0; i < n_eq_; ++i) s_[static_cast<size_t>(i)] = yE_[static_cast<size_t>(i)];
+  for (int i = n_eq_; i < n; ++i) s_[static_cast<size_t>(i)] = gb_[static_cast<size_t>(i)];
+  forward(s_.data(), n_eq_);
+  backward(s_.data());
+  if (ill_conditioned_) refinePassive(p);
+}
+
+void ActiveSetSolver::refinePassive(const QpProblem& p) {
+  const int n = static_cast<int>(passive_.size());
   for (int step = 0; step < settings_.refinement_steps; ++step) {
     // r = b_P − A_PP s, with A_PP s = J_P (M⁻¹ J_Pᵀ s).
     accumulate(p, s_.data(), dz_);
     for (int i = 0; i < n; ++i) tmp_[static_cast<size_t>(i)] = rhs_[static_cast<size_t>(i)] - p.rowDot(passive_[static_cast<size_t>(i)], dz_.data());
-    cholSolve(tmp_.data());
+    forward(tmp_.data(), 0);
+    backward(tmp_.data());
     for (int i = 0; i < n; ++i) s_[static_cast<size_t>(i)] += tmp_[static_cast<size_t>(i)];
   }
 }
@@ -226,10 +291,13 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
   // P starts with every equality row (multipliers free), then last step's active rows.
   bool equality_missing = false;  // an equality that cannot be factorised: not a converged solve
   n_eq_ = 0;  // no gap while the equality block is built
+  ill_conditioned_ = false;
+  indexEqualities(p);
   for (int k = 0; k < m; ++k)
     if (!isIneq(k) && !append(p, k)) equality_missing = equality_missing || p.row(k).c != 0.0 || p.row(k).diag != 0.0;
   n_eq_ = static_cast<int>(passive_.size());
   for (int j = 0; j < n_eq_; ++j) band_[static_cast<size_t>(j)] = std::min(last_[static_cast<size_t>(j)], n_eq_ - 1);
+  forwardEqualities(p);
   if (warm_passive)
     for (int k = 0; k < m; ++k)
       if (isIneq(k) && warm_passive[k]) append(p, k);
@@ -317,6 +385,18 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
     }
   }
 
+  // Iterative refinement of the final passive solution against the unregularised A_PP (the
+  // active-set decisions above need no more than the regularised solves: their tolerance is far
+  // above ε). s_ holds the solve of this passive set; kept only while every passive inequality
+  // multiplier stays positive.
+  if (settings_.refinement_steps > 0 && !passive_.empty() && !ill_conditioned_) {
+    refinePassive(p);
+    bool positive = true;
+    for (size_t i = 0; i < passive_.size(); ++i)
+      positive = positive && (!isIneq(passive_[i]) || s_[i] > 0.0);
+    if (positive)
+      for (size_t i = 0; i < passive_.size(); ++i) lambda_p_[i] = s_[i];
+  }
   for (int k = 0; k < m; ++k) sol.lambda[static_cast<size_t>(k)] = 0.0;
   int active = 0;
   for (size_t i = 0; i < passive_.size(); ++i) {

@@ -57,7 +57,12 @@ class ActiveSetSolver {
  private:
   bool append(const QpProblem& p, int k);   // Cholesky append; false if numerically impossible
   void remove(int position);                // delete P[position] from the factor
-  void solvePassive(const QpProblem& p);    // s_P = A_PP⁻¹ b_P (+ refinement)
+  void indexEqualities(const QpProblem& p); // eq_of_body_: the equality rows touching each body
+  void forwardEqualities(const QpProblem& p);  // yE_ = L_E⁻¹ b_E, once the equality block is built
+  void solvePassive(const QpProblem& p);    // s_P = A_PP⁻¹ b_P (no refinement)
+  void refinePassive(const QpProblem& p);   // s_P += A_PP⁻¹ (b_P − A_PP s_P), refinement_steps times
+  void forward(double* x, int from) const;  // x ← L⁻¹ x over columns from … n−1 (columns before done)
+  void backward(double* x) const;           // x ← L⁻ᵀ x
   void accumulate(const QpProblem& p, const double* x, std::vector<Vec6>& out) const;  // M⁻¹ Jᵀ x over P
   void accumulateAbs(const QpProblem& p, std::vector<Vec6>& out) const;  // |z_u| + Σ_P |λ_i| |M⁻¹ J_iᵀ|
 
@@ -72,6 +77,20 @@ class ActiveSetSolver {
   // zeros in between (with contacts they are most of a column).
   int n_eq_ = 0;
   std::vector<int> band_;
+  // The right-hand side b_P is fixed within a solve, so the forward substitution over the
+  // equality columns is done once: yE_ = L_E⁻¹ b_E, and per passive inequality row (by factor
+  // position) gb_ = b − Σ_{j<n_eq} L_·j yE_j, taken in the order a full forward pass would, so
+  // solvePassive() gives the same bits while substituting only the inequality columns.
+  std::vector<double> yE_, gb_;
+  // Some pivot of this solve's factor came out small (a passive row nearly dependent on the
+  // others): from then on every passive solve is refined, since the regularisation moves such
+  // solutions by more than the active-set tolerance. Well-conditioned solves refine only the
+  // final one.
+  bool ill_conditioned_ = false;
+  static constexpr double kIllPivot = 1e-2;  ///< pivot² / A_kk below this: nearly dependent
+  // Equality rows touching each body (CSR over bodies): append() reads A(P_i, k) only where row k
+  // shares a body with an equality row, instead of over the whole passive set.
+  std::vector<int> eq_start_, eq_rows_;
   std::vector<int> position_;              // row -> position in passive_ or -1
   std::vector<unsigned char> blocked_;     // rows that could not enter since the last change
   std::vector<double> s_, lambda_p_, tmp_, rhs_;
