@@ -603,12 +603,28 @@ double MeshBvh::advancementStep(const Shape& shape, const Pose& X_MB, const Vec3
         if (boxTime(tri_boxes_[static_cast<size_t>(i)], best) >= best) continue;
         const auto& v = tri_vertices_[static_cast<size_t>(i)];
         {
+          // f(c) + min_k u·(v_k − c), u the core distance's gradient at the centroid c, is the
+          // separation of core and triangle along the fixed direction u (u is the core's outward
+          // normal at the point nearest c), so every bound of visitTriangle holds along it too:
+          // the first-order one, then (where that does not settle it) the second-order and the
+          // body-axis ones, which see a turning body's far end recede. Only where the shape is
+          // more than η clear along u (a smaller separation says nothing: the triangle is visited).
           const Vec3 c = (v[0] + v[1] + v[2]) / 3.0;
           Vec3 u;
           const double f = core.pointDistance(c, &u);
-          if (f > 0.0 &&
-              timeBound(f + std::min({u.dot(v[0] - c), u.dot(v[1] - c), u.dot(v[2] - c)}), u) >= best)
-            continue;
+          if (f > 0.0) {
+            const double sep = f + std::min({u.dot(v[0] - c), u.dot(v[1] - c), u.dot(v[2] - c)});
+            double t_u = timeBound(sep, u);
+            const double margin = sep - r - eta;
+            if (t_u < best && margin > 0.0 && n_axes > 0)
+              t_u = std::max(t_u, secondOrderTime(margin, u, dp_M, theta_M, axes, halves, n_axes, horizon));
+            if (t_u < best && margin > 0.0 && theta_M.squaredNorm() > 0.0) {
+              double support = 0.0;
+              for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(u.dot(axes[j]));
+              t_u = std::max(t_u, bodyAxisTime(v, X_MB.p, u, support, r + eta, dp_M, theta_M, 0.0));
+            }
+            if (t_u >= best) continue;
+          }
         }
         visitTriangle(i, v);
       }
