@@ -62,7 +62,12 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
       if (pos >= 0 && pos < n) x[pos] = p.A(r, k);
     }
   }
-  for (int i = n_eq_; i < n; ++i) x[i] = p.A(passive_[static_cast<size_t>(i)], k);
+  for (int i = n_eq_; i < n; ++i) {
+    const Row& a = p.row(passive_[static_cast<size_t>(i)]);
+    const bool shares = a.body0 == row.body0 || a.body0 == row.body1 ||
+                        (a.body1 >= 0 && (a.body1 == row.body0 || a.body1 == row.body1));
+    if (shares) x[i] = p.A(passive_[static_cast<size_t>(i)], k);
+  }
   double ll = 0.0;
   for (int j = 0; j < n; ++j) {
     if (x[j] == 0.0) continue;

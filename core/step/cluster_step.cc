@@ -453,7 +453,16 @@ int ClusterStepper::project(const StepInput& in, bool allow_pull, const std::vec
       proj_.addRow(RowType::Inequality, c.body, J, -1, Vec6::Zero(), std::min(0.0, pp.margin - d_now), 0);
     }
     proj_.finalize();
-    const SolveStats s = exact_.solve(proj_, proj_sol_);
+    // From the second iteration on the rows are the same ones re-linearised a few µm away:
+    // warm-started from the last iteration's active set (where the row layout is the same).
+    const bool warm = it > 0 && proj_warm_.size() == static_cast<size_t>(proj_.numRows());
+    if (warm)
+      for (int r = 0; r < proj_.numRows(); ++r)
+        proj_warm_[static_cast<size_t>(r)] = proj_.row(r).type == RowType::Inequality && proj_warm_[static_cast<size_t>(r)];
+    const SolveStats s = exact_.solve(proj_, proj_sol_, warm ? proj_warm_.data() : nullptr);
+    proj_warm_.resize(static_cast<size_t>(proj_.numRows()));
+    for (int r = 0; r < proj_.numRows(); ++r)
+      proj_warm_[static_cast<size_t>(r)] = proj_sol_.lambda[static_cast<size_t>(r)] > 0.0;
     if (s.status == SolveStatus::NumericalFailure) break;  // poses unchanged: errors still current
     if (pull && anyActiveFrom(proj_first_contact, proj_, proj_sol_)) pull = false;
     for (int b = 0; b < n; ++b)

@@ -192,6 +192,7 @@ class ClusterStepper {
   std::vector<std::pair<std::uint64_t, double>> warm_prev_;
   std::vector<double> warm_lambda_;
   std::vector<unsigned char> warm_flags_;
+  std::vector<unsigned char> proj_warm_;  // the projection's last active rows (its next iteration's warm start)
   StepReport report_;
   StepCounters counters_;
 };
