@@ -23,6 +23,11 @@ Pipeline::Pipeline(const Scene& scene, std::vector<const HandModel*> hands, Pipe
     : scene_(scene), params_(std::move(params)), models_(std::move(hands)) {
   params_.validate();
   params_.step.rows.dt = params_.step.dt;
+  // The hands' solvers share nothing but the read-only scene (each has its own collision world,
+  // stepper and scratch), so they may run at once; the resolver merges them after. Threads left
+  // over (more than hands) go to each solver's bodies (PipelineParams::body_threads).
+  const int threads = params_.trace > 0 ? 1 : std::min(params_.threads, static_cast<int>(std::max<size_t>(1, models_.size())));
+  params_.body_threads = params_.trace > 0 ? 1 : std::max(params_.body_threads, params_.threads / std::max(1, threads));
   for (const HandModel* m : models_) {
     if (!m) throw std::invalid_argument("pipeline: null hand model");
     solvers_.push_back(std::make_unique<HandSolver>(scene, *m, params_));
@@ -34,9 +39,6 @@ Pipeline::Pipeline(const Scene& scene, std::vector<const HandModel*> hands, Pipe
   resolver_->setScene(s0);
   proposals_.resize(models_.size());
   report_.hands.resize(models_.size());
-  // The hands' solvers share nothing but the read-only scene (each has its own collision world,
-  // stepper and scratch), so they may run at once; the resolver merges them after.
-  const int threads = params_.trace > 0 ? 1 : std::min(params_.threads, static_cast<int>(models_.size()));
   workers_ = std::make_unique<Workers>(std::max(1, threads));
   solve_hand_ = [this](int h) {
     const size_t i = static_cast<size_t>(h);

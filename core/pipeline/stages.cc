@@ -73,6 +73,7 @@ void PipelineParams::validate() const {
   require(std::isfinite(max_start_shift) && max_start_shift > 0.0, "max_start_shift must be > 0");
   require(std::isfinite(stuck_rotation) && stuck_rotation >= 0.0, "stuck_rotation must be >= 0 (0 = off)");
   require(threads >= 1 && threads <= 64, "threads must be in [1, 64]");
+  require(body_threads >= 1 && body_threads <= 64, "body_threads must be in [1, 64]");
 }
 
 PhysicsParams physicsParamsFor(double frame_rate, double physics_hz) {
@@ -94,6 +95,11 @@ bool receivesForces(const SceneObject& object, const PipelineParams& params) {
 HandSolver::HandSolver(const Scene& scene, const HandModel& model, const PipelineParams& params)
     : model_(model), params_(prepared(params)), collision_(scene), trace_(params_.trace_sink ? params_.trace : 0) {
   stepper_ = std::make_unique<ClusterStepper>(model, params_.step);
+  const int body_threads = trace_ > 0 ? 1 : std::min(params_.body_threads, static_cast<int>(model.bodies.size()));
+  workers_ = std::make_unique<Workers>(std::max(1, body_threads));
+  for (int t = 1; t < workers_->threads(); ++t) slot_worlds_.push_back(std::make_unique<CollisionWorld>(scene));
+  body_contacts_.resize(model.bodies.size());
+  body_sweeps_.resize(model.bodies.size());
   const int per = static_cast<int>(model.bodies.size()) * params_.contacts.per_pair * 4;
   blocked_.assign(model.bodies.size(), 0);
   rotation_cap_.assign(model.bodies.size(), std::numeric_limits<double>::infinity());
@@ -110,8 +116,23 @@ HandSolver::HandSolver(const Scene& scene, const HandModel& model, const Pipelin
 
 HandSolver::~HandSolver() = default;
 
+template <class F>
+void HandSolver::forEachBody(const F& f) {
+  const int n = static_cast<int>(model_.bodies.size());
+  if (slot_worlds_.empty()) {
+    for (int b = 0; b < n; ++b) f(static_cast<size_t>(b), collision_);
+    return;
+  }
+  // Captures two pointers: std::function keeps it without allocating.
+  const std::function<void(int, int)> job = [this, &f](int b, int slot) {
+    f(static_cast<size_t>(b), slot == 0 ? collision_ : *slot_worlds_[static_cast<size_t>(slot - 1)]);
+  };
+  workers_->runSlots(n, job);
+}
+
 void HandSolver::setScene(const SceneSnapshot& snapshot) {
   applySnapshot(collision_, snapshot);
+  for (auto& w : slot_worlds_) applySnapshot(*w, snapshot);
   scene_frame_ = snapshot.frame;
   scene_step_ = snapshot.step;
 }
@@ -207,9 +228,8 @@ bool HandSolver::start(const HandInput& in) {
 }
 
 void HandSolver::generateContacts(const HandInput& in) {
-  contacts_.clear();
   const std::vector<Pose>& X = stepper_->poses();
-  for (size_t b = 0; b < model_.bodies.size(); ++b) {
+  forEachBody([&](size_t b, CollisionWorld& world) {
     const Shape& shape = model_.bodies[b].shape;
     double reach = params_.contact_reach;
     const bool driven = in.tracked && (!in.has_target || in.has_target[b]);
@@ -220,11 +240,15 @@ void HandSolver::generateContacts(const HandInput& in) {
     // closest-point candidates, which is cheaper.
     ContactParams cp = params_.contacts;
     if (!blocked_[b]) cp.shell = 0.0;
-    const int added = collision_.contacts(shape, X[b], static_cast<int>(b), reach, cp, &contacts_);
+    std::vector<Contact>& out = body_contacts_[b];
+    out.clear();
+    const int added = world.contacts(shape, X[b], static_cast<int>(b), reach, cp, &out);
     // Nothing within `reach` of the body here: a certificate for the rest of this step.
     clear_reach_[b] = added == 0 ? reach : -1.0;
     X_clear_[b] = X[b];
-  }
+  });
+  contacts_.clear();
+  for (const std::vector<Contact>& c : body_contacts_) contacts_.insert(contacts_.end(), c.begin(), c.end());
 }
 
 bool HandSolver::clearOf(size_t b, const Pose& X_a, const Pose& X_b, double room) const {
@@ -240,10 +264,13 @@ bool HandSolver::clearOf(size_t b, const Pose& X_a, const Pose& X_b, double room
 double HandSolver::sweepLastMotion(bool* started_inside) {
   const std::vector<Pose>& X0 = stepper_->previousPoses();
   const std::vector<Pose>& X1 = stepper_->poses();
+  forEachBody([&](size_t b, CollisionWorld& world) {
+    body_sweeps_[b] = clearOf(b, X0[b], X1[b], sweepRoom()) ? geo::SweepResult{}
+                                                             : world.sweep(model_.bodies[b].shape, X0[b], X1[b], params_.sweep);
+  });
   double toc = 1.0;
   for (size_t b = 0; b < model_.bodies.size(); ++b) {
-    const geo::SweepResult s = clearOf(b, X0[b], X1[b], sweepRoom()) ? geo::SweepResult{}
-                                                                         : collision_.sweep(model_.bodies[b].shape, X0[b], X1[b], params_.sweep);
+    const geo::SweepResult& s = body_sweeps_[b];
     countSweep(s);
     if (s.started_inside) *started_inside = true;
     blocked_[b] = s.hit ? 1 : 0;
@@ -296,16 +323,28 @@ JointErrors HandSolver::clip(double toc_min) {
     countSweep(s);
     return s;
   };
+  // Every body's re-closing motion at once (body_sweeps_), counted in body order.
+  auto sweepReclose = [&](const std::vector<Pose>& X) {
+    forEachBody([&](size_t b, CollisionWorld& world) {
+      body_sweeps_[b] = clearOf(b, X_clip_[b], X[b], sweepRoom())
+                            ? geo::SweepResult{}
+                            : world.sweep(model_.bodies[b].shape, X_clip_[b], X[b], params_.sweep);
+    });
+    for (size_t b = 0; b < n; ++b) countSweep(body_sweeps_[b]);
+  };
   auto reclose = [&]() {
-    clip_contacts_.clear();
     const std::vector<Pose>& X = stepper_->poses();
-    for (size_t b = 0; b < n; ++b) {
+    forEachBody([&](size_t b, CollisionWorld& world) {
+      std::vector<Contact>& out = body_contacts_[b];
+      out.clear();
       // The shell's triangles for the bodies whose sweep hit, as in generateContacts.
-      if (clearOf(b, X_clear_[b], X[b], params_.contact_reach)) continue;  // nothing within reach there
+      if (clearOf(b, X_clear_[b], X[b], params_.contact_reach)) return;  // nothing within reach there
       ContactParams cp = params_.contacts;
       if (!blocked_[b]) cp.shell = 0.0;
-      collision_.contacts(model_.bodies[b].shape, X[b], static_cast<int>(b), params_.contact_reach, cp, &clip_contacts_);
-    }
+      world.contacts(model_.bodies[b].shape, X[b], static_cast<int>(b), params_.contact_reach, cp, &out);
+    });
+    clip_contacts_.clear();
+    for (const std::vector<Contact>& c : body_contacts_) clip_contacts_.insert(clip_contacts_.end(), c.begin(), c.end());
     stepper_->reproject(clip_contacts_.data(), static_cast<int>(clip_contacts_.size()));
   };
   X0_ = stepper_->previousPoses();
@@ -318,8 +357,9 @@ JointErrors HandSolver::clip(double toc_min) {
     reclose();
     bool free = true;
     const std::vector<Pose>& X = stepper_->poses();
+    sweepReclose(X);
     for (size_t b = 0; b < n; ++b) {
-      const geo::SweepResult s = sweepRecloseOf(b, X[b]);
+      const geo::SweepResult& s = body_sweeps_[b];
       reclose_toc_[b] = s.started_inside ? 0.0 : s.toc;
       free = free && !s.hit && !s.started_inside && s.toc >= 1.0;
     }

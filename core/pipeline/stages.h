@@ -25,6 +25,7 @@
 
 #include "model/hand_model.h"
 #include "pipeline/collision_world.h"
+#include "pipeline/workers.h"
 #include "scene/scene.h"
 #include "step/cluster_step.h"
 
@@ -85,6 +86,11 @@ struct PipelineParams {
   /// thread). The results are the same for every count; with trace on, the solvers run on the
   /// caller's thread so that the lines keep their order.
   int threads = 1;
+  /// Threads one HandSolver spreads its bodies' collision queries over (contacts and sweeps: the
+  /// bodies' queries are independent, each thread has its own collision scratch, and the results
+  /// are merged in body order, so they are the same for every count). The Pipeline gives each
+  /// solver threads / (the hands stepped at once); with trace on, 1.
+  int body_threads = 1;
 
   void validate() const;              ///< throws std::invalid_argument naming the field
 };
@@ -261,6 +267,10 @@ class HandSolver {
     counters_.sweep_iterations += static_cast<std::uint64_t>(s.iterations);
     if (s.capped) ++counters_.sweeps_capped;
   }
+  /// f(b, world) for every body b, spread over the body threads, each call with that thread's
+  /// own collision world (the same scene, its own scratch).
+  template <class F>
+  void forEachBody(const F& f);
   bool start(const HandInput& in);
   /// The nearest free rigid translation of the poses X (shift; zero when X is free already).
   bool freeStart(std::vector<Pose>* X, Vec3* shift) const;
@@ -275,6 +285,10 @@ class HandSolver {
   PipelineParams params_;
   CollisionWorld collision_;
   std::unique_ptr<ClusterStepper> stepper_;
+  std::unique_ptr<Workers> workers_;                    // body threads (PipelineParams::body_threads)
+  std::vector<std::unique_ptr<CollisionWorld>> slot_worlds_;  // threads 1 …: their own collision worlds
+  std::vector<std::vector<Contact>> body_contacts_;     // per body, merged in body order
+  std::vector<geo::SweepResult> body_sweeps_;           // per body
   bool started_ = false;
   std::uint64_t scene_frame_ = 0, scene_step_ = 0;
   JointErrors last_errors_;

@@ -7,7 +7,7 @@ namespace godhand {
 Workers::Workers(int threads) {
   if (threads < 1 || threads > 64) throw std::invalid_argument("threads must be in [1, 64]");
   threads_.reserve(static_cast<size_t>(threads - 1));
-  for (int t = 1; t < threads; ++t) threads_.emplace_back([this] { loop(); });
+  for (int t = 1; t < threads; ++t) threads_.emplace_back([this, t] { loop(t); });
 }
 
 Workers::~Workers() {
@@ -20,14 +20,14 @@ Workers::~Workers() {
 }
 
 // Takes jobs until none is left; called and returns with the lock held.
-void Workers::drain(std::unique_lock<std::mutex>& lock) {
+void Workers::drain(std::unique_lock<std::mutex>& lock, int slot) {
   while (next_ < n_) {
     const int i = next_++;
     ++running_;
     lock.unlock();
     std::exception_ptr e;
     try {
-      (*job_)(i);
+      (*job_)(i, slot);
     } catch (...) {
       e = std::current_exception();
     }
@@ -37,24 +37,29 @@ void Workers::drain(std::unique_lock<std::mutex>& lock) {
   }
 }
 
-void Workers::loop() {
+void Workers::loop(int slot) {
   std::unique_lock<std::mutex> lock(mutex_);
   std::uint64_t seen = 0;  // a thread that starts late still joins the first run
   for (;;) {
     start_.wait(lock, [&] { return stop_ || generation_ != seen; });
     if (stop_) return;
     seen = generation_;
-    drain(lock);
+    drain(lock, slot);
   }
 }
 
 void Workers::run(int n, const std::function<void(int)>& job) {
+  const std::function<void(int, int)> plain = [&job](int i, int) { job(i); };  // fits std::function's buffer
+  runSlots(n, plain);
+}
+
+void Workers::runSlots(int n, const std::function<void(int, int)>& job) {
   if (n <= 0) return;
   if (threads_.empty() || n == 1) {
     std::exception_ptr first;
     for (int i = 0; i < n; ++i) {
       try {
-        job(i);
+        job(i, 0);
       } catch (...) {
         if (!first) first = std::current_exception();
       }
@@ -69,7 +74,7 @@ void Workers::run(int n, const std::function<void(int)>& job) {
   error_ = nullptr;
   ++generation_;
   start_.notify_all();
-  drain(lock);
+  drain(lock, 0);
   done_.wait(lock, [&] { return running_ == 0 && next_ >= n_; });
   job_ = nullptr;
   n_ = 0;

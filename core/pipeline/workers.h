@@ -28,15 +28,19 @@ class Workers {
   /// job(i) for every i in [0, n), each exactly once, spread over the threads; returns when all
   /// have finished. The first exception a job throws is rethrown here (the others still run).
   void run(int n, const std::function<void(int)>& job);
+  /// The same, telling each job the slot of the thread that runs it (0: the caller, 1 ..
+  /// threads() − 1: the background threads), for per-thread scratch. No two jobs run at once
+  /// in one slot.
+  void runSlots(int n, const std::function<void(int job, int slot)>& job);
 
  private:
-  void loop();
-  void drain(std::unique_lock<std::mutex>& lock);
+  void loop(int slot);
+  void drain(std::unique_lock<std::mutex>& lock, int slot);
 
   std::vector<std::thread> threads_;
   std::mutex mutex_;
   std::condition_variable start_, done_;
-  const std::function<void(int)>* job_ = nullptr;
+  const std::function<void(int, int)>* job_ = nullptr;
   int n_ = 0, next_ = 0, running_ = 0;
   std::uint64_t generation_ = 0;
   bool stop_ = false;

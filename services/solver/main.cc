@@ -36,14 +36,18 @@ int main(int argc, char** argv) {
   svc::CommonOptions common;
   common.declare(cli);
   std::string cluster_name, solver_kind = "exact";
-  int pgs_iterations = 30;
+  int pgs_iterations = 30, threads = 1;
   cli.option("--cluster", &cluster_name, "NAME", "the lab's hand cluster this process solves (required)");
+  cli.option("--threads", &threads, "N",
+             "threads the cluster's bodies' contact and sweep queries are spread over (the results "
+             "are the same for every N)");
   cli.option("--solver", &solver_kind, "exact|pgs", "NNLS solver");
   cli.option("--pgs-iterations", &pgs_iterations, "N", "PGS sweeps");
   cli.parse(argc, argv);
   if (cluster_name.empty()) cli.fail("--cluster NAME is required");
   if (solver_kind != "exact" && solver_kind != "pgs") cli.fail("--solver must be exact or pgs");
   if (pgs_iterations < 1 || pgs_iterations > 100000) cli.fail("--pgs-iterations must be in [1, 100000]");
+  if (threads < 1 || threads > 64) cli.fail("--threads must be in [1, 64]");
 
   svc::Service service("solver/" + cluster_name, common, cli);
   const LabConfig& lab = service.lab();
@@ -61,6 +65,7 @@ int main(int argc, char** argv) {
     params.step.dt = 1.0 / service.frameRate();
     params.step.solver = solver_kind == "exact" ? SolverKind::Exact : SolverKind::Pgs;
     params.step.pgs.sweeps = pgs_iterations;
+    params.body_threads = threads;
     solver = std::make_unique<HandSolver>(scene, model, params);
   } catch (const std::exception& e) {
     cli.fail(e.what());

@@ -1,7 +1,9 @@
-// The hands' solvers on worker threads (PipelineParams::threads, core/pipeline/workers.h).
-// Oracles: a determinism hash over a real two-hand recording on the default scene (poses of
-// every God body, contact counts, forces and TOCs) that must be the same bit for bit for 1, 2
-// and 3 threads; the Workers run every job exactly once and hand back a job's exception.
+// The hands' solvers on worker threads (PipelineParams::threads, core/pipeline/workers.h), and
+// each solver's bodies' collision queries on threads of their own (PipelineParams::body_threads).
+// Oracles: a determinism hash over a real two-hand recording on the bunny (poses of every God
+// body, contact counts, forces and TOCs) that must be the same bit for bit for 1, 2 and 3
+// threads of either kind; the Workers run every job exactly once, in a slot no other running
+// job holds, and hand back a job's exception.
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -40,7 +42,7 @@ struct RunResult {
 
 // Both hands of confidence2 on the bunny (0.25 m, centred on the palms: acceptance.sh's
 // twohands-bunny, where both hands press into it), its first 120 frames.
-RunResult runTwoHands(int threads) {
+RunResult runTwoHands(int threads, int body_threads = 1) {
   const leap::Recording rec = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/confidence2-49fps.json");
   const HandModel right = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
   const HandModel left = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_left.pbtxt");
@@ -49,6 +51,7 @@ RunResult runTwoHands(int threads) {
   PipelineParams p;
   p.step.dt = 1.0 / rec.meanFrameRate();
   p.threads = threads;
+  p.body_threads = body_threads;
   Pipeline pipe(scene, {&right, &left}, p);
   leap::Retargeter rt_right(right), rt_left(left);
   std::vector<Pose> tr, tl;
@@ -87,6 +90,34 @@ TEST(Threads, TwoHandsGiveTheSameResultOnOneTwoAndThreeThreads) {
   EXPECT_EQ(one.hash, three.hash);
 }
 
+TEST(Threads, BodyThreadsGiveTheSameResultAsOne) {
+  const RunResult one = runTwoHands(1, 1), two = runTwoHands(1, 2), three = runTwoHands(1, 3);
+  std::printf("[figure] two hands, 120 frames, body threads 1/2/3: hash %016llx %016llx %016llx (%ld contacts)\n",
+              static_cast<unsigned long long>(one.hash), static_cast<unsigned long long>(two.hash),
+              static_cast<unsigned long long>(three.hash), one.loads);
+  EXPECT_GT(one.loads, 0);
+  EXPECT_EQ(one.hash, two.hash);
+  EXPECT_EQ(one.hash, three.hash);
+  EXPECT_EQ(one.hash, runTwoHands(2, 2).hash);  // both kinds at once
+}
+
+TEST(Threads, SlotsAreExclusiveAndInRange) {
+  for (int threads : {1, 2, 3}) {
+    Workers w(threads);
+    std::vector<std::atomic<int>> busy(static_cast<size_t>(threads));
+    for (auto& b : busy) b = 0;
+    std::atomic<int> bad{0}, ran{0};
+    for (int rep = 0; rep < 200; ++rep)
+      w.runSlots(17, [&](int, int slot) {
+        if (slot < 0 || slot >= threads || busy[static_cast<size_t>(slot)].fetch_add(1) != 0) ++bad;
+        ++ran;
+        if (slot >= 0 && slot < threads) --busy[static_cast<size_t>(slot)];
+      });
+    EXPECT_EQ(bad.load(), 0) << threads << " threads";
+    EXPECT_EQ(ran.load(), 200 * 17);
+  }
+}
+
 TEST(Threads, WorkersRunEveryJobExactlyOnce) {
   for (int threads : {1, 2, 4}) {
     Workers w(threads);
@@ -123,6 +154,9 @@ TEST(Threads, AJobsExceptionComesBackAfterTheOthersRan) {
   EXPECT_THROW(Workers(0), std::invalid_argument);
   PipelineParams p;
   p.threads = 0;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+  p.threads = 1;
+  p.body_threads = 0;
   EXPECT_THROW(p.validate(), std::invalid_argument);
 }
 
