@@ -409,6 +409,7 @@ int ClusterStepper::project(const StepInput& in, bool allow_pull, const std::vec
   const int n = static_cast<int>(model_.bodies.size());
   const int first_contact = report_.equality_rows + report_.limit_rows;
   bool pull = allow_pull && !anyActiveFrom(first_contact, qp_, sol_);
+  double last_violation = 0.0;
   int it = 0;
   for (;; ++it) {
     // The errors of the current poses: the report's figures when the loop ends here.
@@ -430,6 +431,14 @@ int ClusterStepper::project(const StepInput& in, bool allow_pull, const std::vec
     if (it >= params_.projection_iterations ||
         std::max({e.gap, e.lock, e.limit, contact_violation}) <= params_.projection_tolerance)
       break;
+    // Joints and limits closed, and a contact point still further in than it was by as much as
+    // the last iteration left it: the rows hold such a point where it is (they allow no further
+    // approach, they do not pull it back out), so more iterations change nothing (seen: 1.1 µm
+    // of a rotation's second-order swing, held through all 8 iterations). Reported as it is.
+    if (it > 0 && std::max({e.gap, e.lock, e.limit}) <= params_.projection_tolerance &&
+        contact_violation >= last_violation * (1.0 - 1e-3))
+      break;
+    last_violation = contact_violation;
     proj_.reset(n);
     assembleMasses(proj_, X_W_);
     pull = pull && it < kGoalIterations;
