@@ -100,6 +100,7 @@ HandSolver::HandSolver(const Scene& scene, const HandModel& model, const Pipelin
   for (int t = 1; t < workers_->threads(); ++t) slot_worlds_.push_back(std::make_unique<CollisionWorld>(scene));
   body_contacts_.resize(model.bodies.size());
   body_sweeps_.resize(model.bodies.size());
+  certified_.assign(model.bodies.size(), 0);
   const int per = static_cast<int>(model.bodies.size()) * params_.contacts.per_pair * 4;
   blocked_.assign(model.bodies.size(), 0);
   rotation_cap_.assign(model.bodies.size(), std::numeric_limits<double>::infinity());
@@ -117,9 +118,9 @@ HandSolver::HandSolver(const Scene& scene, const HandModel& model, const Pipelin
 HandSolver::~HandSolver() = default;
 
 template <class F>
-void HandSolver::forEachBody(const F& f) {
+void HandSolver::forEachBody(const F& f, int busy) {
   const int n = static_cast<int>(model_.bodies.size());
-  if (slot_worlds_.empty()) {
+  if (slot_worlds_.empty() || busy < kMinParallelBodies) {
     for (int b = 0; b < n; ++b) f(static_cast<size_t>(b), collision_);
     return;
   }
@@ -229,6 +230,8 @@ bool HandSolver::start(const HandInput& in) {
 
 void HandSolver::generateContacts(const HandInput& in) {
   const std::vector<Pose>& X = stepper_->poses();
+  int busy = 0;  // bodies that had something within reach at the last query (the rest exit early)
+  for (double r : clear_reach_) busy += r > 0.0 ? 0 : 1;
   forEachBody([&](size_t b, CollisionWorld& world) {
     const Shape& shape = model_.bodies[b].shape;
     double reach = params_.contact_reach;
@@ -246,7 +249,7 @@ void HandSolver::generateContacts(const HandInput& in) {
     // Nothing within `reach` of the body here: a certificate for the rest of this step.
     clear_reach_[b] = added == 0 ? reach : -1.0;
     X_clear_[b] = X[b];
-  });
+  }, busy);
   contacts_.clear();
   for (const std::vector<Contact>& c : body_contacts_) contacts_.insert(contacts_.end(), c.begin(), c.end());
 }
@@ -264,10 +267,14 @@ bool HandSolver::clearOf(size_t b, const Pose& X_a, const Pose& X_b, double room
 double HandSolver::sweepLastMotion(bool* started_inside) {
   const std::vector<Pose>& X0 = stepper_->previousPoses();
   const std::vector<Pose>& X1 = stepper_->poses();
+  int busy = 0;
+  for (size_t b = 0; b < model_.bodies.size(); ++b) {
+    certified_[b] = clearOf(b, X0[b], X1[b], sweepRoom()) ? 1 : 0;
+    busy += 1 - certified_[b];
+  }
   forEachBody([&](size_t b, CollisionWorld& world) {
-    body_sweeps_[b] = clearOf(b, X0[b], X1[b], sweepRoom()) ? geo::SweepResult{}
-                                                             : world.sweep(model_.bodies[b].shape, X0[b], X1[b], params_.sweep);
-  });
+    body_sweeps_[b] = certified_[b] ? geo::SweepResult{} : world.sweep(model_.bodies[b].shape, X0[b], X1[b], params_.sweep);
+  }, busy);
   double toc = 1.0;
   for (size_t b = 0; b < model_.bodies.size(); ++b) {
     const geo::SweepResult& s = body_sweeps_[b];
@@ -325,24 +332,32 @@ JointErrors HandSolver::clip(double toc_min) {
   };
   // Every body's re-closing motion at once (body_sweeps_), counted in body order.
   auto sweepReclose = [&](const std::vector<Pose>& X) {
+    int busy = 0;
+    for (size_t b = 0; b < n; ++b) {
+      certified_[b] = clearOf(b, X_clip_[b], X[b], sweepRoom()) ? 1 : 0;
+      busy += 1 - certified_[b];
+    }
     forEachBody([&](size_t b, CollisionWorld& world) {
-      body_sweeps_[b] = clearOf(b, X_clip_[b], X[b], sweepRoom())
-                            ? geo::SweepResult{}
-                            : world.sweep(model_.bodies[b].shape, X_clip_[b], X[b], params_.sweep);
-    });
+      body_sweeps_[b] = certified_[b] ? geo::SweepResult{} : world.sweep(model_.bodies[b].shape, X_clip_[b], X[b], params_.sweep);
+    }, busy);
     for (size_t b = 0; b < n; ++b) countSweep(body_sweeps_[b]);
   };
   auto reclose = [&]() {
     const std::vector<Pose>& X = stepper_->poses();
+    int busy = 0;
+    for (size_t b = 0; b < n; ++b) {
+      certified_[b] = clearOf(b, X_clear_[b], X[b], params_.contact_reach) ? 1 : 0;
+      busy += 1 - certified_[b];
+    }
     forEachBody([&](size_t b, CollisionWorld& world) {
       std::vector<Contact>& out = body_contacts_[b];
       out.clear();
       // The shell's triangles for the bodies whose sweep hit, as in generateContacts.
-      if (clearOf(b, X_clear_[b], X[b], params_.contact_reach)) return;  // nothing within reach there
+      if (certified_[b]) return;  // nothing within reach there
       ContactParams cp = params_.contacts;
       if (!blocked_[b]) cp.shell = 0.0;
       world.contacts(model_.bodies[b].shape, X[b], static_cast<int>(b), params_.contact_reach, cp, &out);
-    });
+    }, busy);
     clip_contacts_.clear();
     for (const std::vector<Contact>& c : body_contacts_) clip_contacts_.insert(clip_contacts_.end(), c.begin(), c.end());
     stepper_->reproject(clip_contacts_.data(), static_cast<int>(clip_contacts_.size()));

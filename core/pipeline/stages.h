@@ -268,9 +268,12 @@ class HandSolver {
     if (s.capped) ++counters_.sweeps_capped;
   }
   /// f(b, world) for every body b, spread over the body threads, each call with that thread's
-  /// own collision world (the same scene, its own scratch).
+  /// own collision world (the same scene, its own scratch). `busy`: how many of the calls are
+  /// expected to query the meshes; below kMinParallelBodies they all run on the caller's thread
+  /// (waking a thread costs more than a few certified bodies: the results are the same).
   template <class F>
-  void forEachBody(const F& f);
+  void forEachBody(const F& f, int busy);
+  static constexpr int kMinParallelBodies = 2;
   bool start(const HandInput& in);
   /// The nearest free rigid translation of the poses X (shift; zero when X is free already).
   bool freeStart(std::vector<Pose>* X, Vec3* shift) const;
@@ -289,6 +292,7 @@ class HandSolver {
   std::vector<std::unique_ptr<CollisionWorld>> slot_worlds_;  // threads 1 …: their own collision worlds
   std::vector<std::vector<Contact>> body_contacts_;     // per body, merged in body order
   std::vector<geo::SweepResult> body_sweeps_;           // per body
+  std::vector<unsigned char> certified_;                // per body: clearOf its motion (no query)
   bool started_ = false;
   std::uint64_t scene_frame_ = 0, scene_step_ = 0;
   JointErrors last_errors_;
