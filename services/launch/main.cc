@@ -989,12 +989,16 @@ int main(int argc, char** argv) {
                         hl == Watchdog::Health::Unknown ? "starting" : s.second.state().c_str());
         rates += b;
       }
-      char pen_text[48];
+      char pen_text[48], lat_text[96];
       std::snprintf(pen_text, sizeof pen_text, "%.4f mm", window_pen * 1e3);
-      std::printf("launch: t %5.1f s | %s | latency median %.0f us p99 %.0f us | penetration %s | states %ld stale %ld\n",
-                  replayS() < 0 ? 0.0 : replayS(), rates.c_str(), percentile(window_latency, 0.5), percentile(window_latency, 0.99),
-                  scene_down ? "not scored (scene down)" : pen_text, rep.states,
-                  rep.stale_states);
+      // No fresh HandState this second: no latency to show (a 0 would read as instant).
+      if (window_latency.empty())
+        std::snprintf(lat_text, sizeof lat_text, "latency - (no fresh hand state this second)");
+      else
+        std::snprintf(lat_text, sizeof lat_text, "latency median %.0f us p99 %.0f us", percentile(window_latency, 0.5),
+                      percentile(window_latency, 0.99));
+      std::printf("launch: t %5.1f s | %s | %s | penetration %s | states %ld stale %ld\n", replayS() < 0 ? 0.0 : replayS(),
+                  rates.c_str(), lat_text, scene_down ? "not scored (scene down)" : pen_text, rep.states, rep.stale_states);
       std::fflush(stdout);
       window_latency.clear();
       window_pen = 0;

@@ -44,13 +44,18 @@ void printSummary(const RunReport& r) {
                 r.stale_after_s + 0.1);
   std::printf("  end-to-end latency (tracker sample -> HandState here): median %.0f us, p99 %.0f us, max %.0f us; %.1f fresh frames/s\n",
               r.latency_median_us, r.latency_p99_us, r.latency_max_us, r.frames_per_s);
+  if (!r.services.empty())
+    std::printf("  per service: its last frame; source->output = tracker sample to the service's output, median "
+                "(the scene steps on its own clock, live: up to a frame more); samples in / out; inputs rejected; inputs "
+                "late for their frame; lock-step deadlines missed\n");
   for (const auto& [name, s] : r.services)
     std::printf("  %-14s frame %llu, source->output %.0f us, in %llu, out %llu, rejected %llu, late %llu, deadline misses %llu, state %s, %s\n",
                 name.c_str(), static_cast<unsigned long long>(s.frame), s.latency_median_us,
                 static_cast<unsigned long long>(s.samples_in), static_cast<unsigned long long>(s.samples_out),
                 static_cast<unsigned long long>(s.rejected), static_cast<unsigned long long>(s.late),
                 static_cast<unsigned long long>(s.deadline_misses), s.state.c_str(), s.health.c_str());
-  std::printf("  penetration max %.4f mm (margin %.3f mm), joint gap max %.2e m, free tracking error max %.2f mm, clipped %ld, scene push-outs %ld\n",
+  std::printf("  penetration max %.4f mm (margin %.3f mm), joint gap max %.2e m, free tracking error (no contact loaded) max "
+              "%.2f mm, hand states clipped by the sweep %ld, scene push-outs (an object moved out of a God object) %ld\n",
               r.penetration_max_m * 1e3, r.margin_m * 1e3, r.joint_gap_max_m, r.free_err_max_m * 1e3, r.clipped, r.pushouts);
   if (r.have_plausibility)
     for (const HandSummary& h : r.plausibility.hands) std::printf("  %s\n", describe(h).c_str());
