@@ -18,8 +18,8 @@ values: "3" }`; or GRID.json: {"mode": "each" | "product", "knobs": {"--substeps
 godhand-bench's option value; a value with spaces is split into several arguments
 ("pgs --pgs-iterations 100" under "--solver"; the 6-body hands under "--hand-model" also set
 --left-hand-model; paths are relative to the current directory, the project root). Points of
-"--god-fidelity" (full, hull, decimated:N; penetration still against the full mesh) run only
-with --mesh.
+"--god-fidelity" (full, hull, decimated:N, auto:MM; penetration still against the full mesh) apply
+to the --mesh objects or to the scene file's mesh objects; they are left out with --scene none.
 
 Exit status: 0 ok (also when no point meets --target: it says so), 1 a point's run failed,
 2 bad arguments. Progress on stderr."""
@@ -207,10 +207,10 @@ def main():
         except (OSError, ValueError) as e:
             fail(f"{a.grid}: {e}".replace("\n", " "))
     pts = points_of(grid)
-    if not a.mesh:  # --god-fidelity is a --mesh knob (a scene file sets each object's fidelity)
+    if not a.mesh and a.scene == "none":  # --god-fidelity changes meshes: none there
         kept = [k for k in pts if "--god-fidelity" not in k]
         if len(kept) < len(pts):
-            print(f"godhand-sweep: {len(pts) - len(kept)} --god-fidelity point(s) left out: they apply to --mesh scenes", file=sys.stderr)
+            print(f"godhand-sweep: {len(pts) - len(kept)} --god-fidelity point(s) left out: --scene none has no meshes", file=sys.stderr)
         pts = kept
 
     base = [a.bench, "--recording", a.recording, "--quiet"] + [x for m in a.mesh for x in ("--mesh", m)]
