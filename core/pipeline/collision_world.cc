@@ -40,6 +40,10 @@ geo::Aabb sweptBox(const Vec3& a, const Vec3& b, double r) {
 CollisionWorld::CollisionWorld(const Scene& scene) {
   objects_.reserve(scene.objects.size());
   union_box_.resize(scene.objects.size());
+  leaf_of_.assign(scene.objects.size(), -1);
+  split_key_.resize(scene.objects.size());
+  is_moved_.assign(scene.objects.size(), 0);
+  moved_.reserve(scene.objects.size());
   costs_.resize(scene.objects.size());
   for (const SceneObject& so : scene.objects) {
     Object o;
@@ -72,7 +76,12 @@ void CollisionWorld::place(size_t object, const Pose& X_WO) {
   geo::Aabb& old = union_box_[object];
   if (u.lo != old.lo || u.hi != old.hi) {
     old = u;
-    tree_dirty_ = true;
+    if (leaf_of_[object] < 0) {
+      rebuild_ = true;  // not in the tree (it had no box)
+    } else if (!is_moved_[object]) {
+      is_moved_[object] = 1;
+      moved_.push_back(static_cast<int>(object));
+    }
   }
 }
 
@@ -100,14 +109,17 @@ void CollisionWorld::CostClock::charge(size_t object) {
 void CollisionWorld::buildTree() const {
   nodes_.clear();
   build_ids_.clear();
+  std::fill(leaf_of_.begin(), leaf_of_.end(), -1);
   for (int i = 0; i < objectCount(); ++i)
     if (!union_box_[static_cast<size_t>(i)].empty()) build_ids_.push_back(i);
-  if (!build_ids_.empty()) buildNode(build_ids_.data(), static_cast<int>(build_ids_.size()));
-  refits_ = 0;
-  tree_dirty_ = false;
+  if (!build_ids_.empty()) buildNode(build_ids_.data(), static_cast<int>(build_ids_.size()), -1);
+  for (int o : moved_) is_moved_[static_cast<size_t>(o)] = 0;
+  moved_.clear();
+  moved_since_build_ = 0;
+  rebuild_ = false;
 }
 
-int CollisionWorld::buildNode(int* ids, int count) const {
+int CollisionWorld::buildNode(int* ids, int count, int parent) const {
   const int me = static_cast<int>(nodes_.size());
   nodes_.emplace_back();
   geo::Aabb box, centres;
@@ -117,35 +129,57 @@ int CollisionWorld::buildNode(int* ids, int count) const {
     centres.grow(b.centre());
   }
   nodes_[static_cast<size_t>(me)].box = box;
+  nodes_[static_cast<size_t>(me)].parent = parent;
   if (count == 1) {
     nodes_[static_cast<size_t>(me)].object = ids[0];
+    leaf_of_[static_cast<size_t>(ids[0])] = me;
     return me;
   }
   int axis = 0;
   centres.extent().maxCoeff(&axis);
+  for (int k = 0; k < count; ++k) {  // the split key (twice the centre), once per object
+    const geo::Aabb& b = union_box_[static_cast<size_t>(ids[k])];
+    split_key_[static_cast<size_t>(ids[k])] = b.lo[axis] + b.hi[axis];
+  }
   const int mid = count / 2;
   std::nth_element(ids, ids + mid, ids + count, [&](int a, int b) {
-    const double ca = union_box_[static_cast<size_t>(a)].centre()[axis], cb = union_box_[static_cast<size_t>(b)].centre()[axis];
-    return ca < cb || (ca == cb && a < b);
+    const double ka = split_key_[static_cast<size_t>(a)], kb = split_key_[static_cast<size_t>(b)];
+    return ka < kb || (ka == kb && a < b);
   });
-  buildNode(ids, mid);  // the left child: node me + 1
-  const int right = buildNode(ids + mid, count - mid);
+  buildNode(ids, mid, me);  // the left child: node me + 1
+  const int right = buildNode(ids + mid, count - mid, me);
   nodes_[static_cast<size_t>(me)].right = right;
   return me;
 }
 
 void CollisionWorld::refitTree() const {
-  for (size_t i = nodes_.size(); i-- > 0;) {
-    Node& nd = nodes_[i];
-    if (nd.object >= 0) {
-      nd.box = union_box_[static_cast<size_t>(nd.object)];
-    } else {
-      nd.box = nodes_[i + 1].box;
+  if (moved_.size() * 16 > nodes_.size()) {  // many moved: one pass from the leaves up (children after parents)
+    for (size_t i = nodes_.size(); i-- > 0;) {
+      Node& nd = nodes_[i];
+      if (nd.object >= 0) {
+        nd.box = union_box_[static_cast<size_t>(nd.object)];
+      } else {
+        nd.box = nodes_[i + 1].box;
+        nd.box.grow(nodes_[static_cast<size_t>(nd.right)].box);
+      }
+    }
+    for (int o : moved_) is_moved_[static_cast<size_t>(o)] = 0;
+    moved_since_build_ += moved_.size();
+    moved_.clear();
+    return;
+  }
+  for (int o : moved_) {  // a few moved: their leaves and the paths up
+    is_moved_[static_cast<size_t>(o)] = 0;
+    int i = leaf_of_[static_cast<size_t>(o)];
+    nodes_[static_cast<size_t>(i)].box = union_box_[static_cast<size_t>(o)];
+    for (i = nodes_[static_cast<size_t>(i)].parent; i >= 0; i = nodes_[static_cast<size_t>(i)].parent) {
+      Node& nd = nodes_[static_cast<size_t>(i)];
+      nd.box = nodes_[static_cast<size_t>(i) + 1].box;
       nd.box.grow(nodes_[static_cast<size_t>(nd.right)].box);
     }
   }
-  ++refits_;
-  tree_dirty_ = false;
+  moved_since_build_ += moved_.size();
+  moved_.clear();
 }
 
 const std::vector<int>& CollisionWorld::candidates(const geo::Aabb& query) const {
@@ -156,10 +190,9 @@ const std::vector<int>& CollisionWorld::candidates(const geo::Aabb& query) const
     if (untimed_ == 0) visited_ += cand_.size();
     return cand_;
   }
-  if (tree_dirty_) {
-    if (refits_ >= kRebuildAfter) buildTree();
-    else refitTree();
-  }
+  if (rebuild_ || moved_since_build_ + moved_.size() >= std::max<std::size_t>(kRebuildAfter, kRebuildFactor * static_cast<size_t>(n)))
+    buildTree();
+  else if (!moved_.empty()) refitTree();
   if (nodes_.empty() || !nodes_[0].box.overlaps(query)) return cand_;
   stack_.clear();
   stack_.push_back(0);

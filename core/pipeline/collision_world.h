@@ -149,23 +149,31 @@ class CollisionWorld {
   /// The objects whose God or reference box may overlap `query`, ascending, in cand_.
   const std::vector<int>& candidates(const geo::Aabb& query) const;
   /// The box tree over the objects' boxes (God ∪ reference): nodes in pre-order (children after
-  /// their parent), a leaf holds one object. Refitted when boxes moved, rebuilt every
-  /// kRebuildAfter refits (a tree's shape only changes how fast, never what it answers).
+  /// their parent), a leaf holds one object. A moved object's leaf and its ancestors are refitted
+  /// at the next query; the tree is rebuilt once kRebuildFactor times as many boxes moved as it has
+  /// objects (at least kRebuildAfter), or when an object without a box gets one (a tree's shape
+  /// only changes how fast it answers, never what).
   struct Node {
     geo::Aabb box;
+    int parent = -1;
     int right = -1;   ///< inner node: its right child (the left one is the next node)
     int object = -1;  ///< leaf: the object
   };
   void buildTree() const;
-  int buildNode(int* ids, int count) const;
+  int buildNode(int* ids, int count, int parent) const;
   void refitTree() const;
   static constexpr int kLinearUpTo = 8;       ///< up to this many objects: a plain scan
-  static constexpr int kRebuildAfter = 32;
+  static constexpr std::size_t kRebuildAfter = 256;
+  static constexpr std::size_t kRebuildFactor = 8;
   mutable std::vector<Node> nodes_;
   mutable std::vector<int> build_ids_;
+  mutable std::vector<int> leaf_of_;          ///< per object: its leaf node, -1 when none
+  mutable std::vector<double> split_key_;     ///< per object: scratch of buildNode
   mutable std::vector<geo::Aabb> union_box_;  ///< per object: box_W ∪ ref_box_W
-  mutable bool tree_dirty_ = true;
-  mutable int refits_ = 0;
+  mutable std::vector<int> moved_;            ///< objects whose box changed since the last query
+  mutable std::vector<unsigned char> is_moved_;
+  mutable bool rebuild_ = true;
+  mutable std::size_t moved_since_build_ = 0;
   mutable std::vector<int> cand_, stack_;     // scratch
 
   /// Charges each queried object the time since the previous charge (or since begin()):

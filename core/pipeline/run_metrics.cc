@@ -219,23 +219,26 @@ std::string describe(const ObjectShares& s) {
   const double per_frame = s.frames > 0 ? 1.0 / static_cast<double>(s.frames) : 0.0;
   char buf[256];
   std::string line = "God side by object (contacts, sweeps, distances; share of the frame time):";
-  for (size_t k = 0; k < order.size() && k < kNamed; ++k) {
+  size_t named = 0;  // the costliest queried objects
+  while (named < order.size() && named < kNamed && s.objects[order[named]].god_queries > 0) ++named;
+  if (named == 0) line += " none queried";
+  for (size_t k = 0; k < named; ++k) {
     const ObjectShare& o = s.objects[order[k]];
     std::snprintf(buf, sizeof buf, "%s %s %.1f %% (%.1f us a frame, %llu queries)", k ? "," : "", o.id.c_str(),
                   100.0 * o.god_share, o.god_us * per_frame, static_cast<unsigned long long>(o.god_queries));
     line += buf;
   }
-  if (order.size() > kNamed) {
+  if (order.size() > named) {
     double us = 0.0;
     std::uint64_t queries = 0;
     size_t never = 0;
-    for (size_t k = kNamed; k < order.size(); ++k) {
+    for (size_t k = named; k < order.size(); ++k) {
       us += s.objects[order[k]].god_us;
       queries += s.objects[order[k]].god_queries;
       never += s.objects[order[k]].god_queries == 0 ? 1 : 0;
     }
-    std::snprintf(buf, sizeof buf, ", the other %zu objects %.1f %% together (%llu queries; %zu never queried)",
-                  order.size() - kNamed, s.frames_us > 0.0 ? 100.0 * us / s.frames_us : 0.0,
+    std::snprintf(buf, sizeof buf, "%s %zu objects %.1f %% together (%llu queries; %zu never queried)",
+                  named ? ", the other" : " of", order.size() - named, s.frames_us > 0.0 ? 100.0 * us / s.frames_us : 0.0,
                   static_cast<unsigned long long>(queries), never);
     line += buf;
   }
