@@ -17,35 +17,14 @@
 #include "pipeline/pipeline.h"
 #include "scene/mesh_io.h"
 #include "scene/scene.h"
+#include "box_scene.h"
 #include "probe_model.h"
 
 namespace godhand {
 namespace {
 
-SceneObject box(const std::string& id, const Vec3& half, const Pose& X_WO, double mass) {
-  SceneObject o;
-  o.id = id;
-  o.X_WO = X_WO;
-  o.mass = mass;
-  o.god = std::make_shared<geo::MeshBvh>(boxMesh(half));
-  o.reference = o.god;
-  o.physics.type = PhysicsShapeType::Box;
-  o.physics.half_extents = half;
-  o.source = "box";
-  return o;
-}
-
-Scene sceneOf(std::vector<SceneObject> objects) {
-  Scene s;
-  s.name = "test";
-  s.gravity = Vec3(0, 0, -9.81);
-  for (SceneObject& o : objects) {
-    o.index = static_cast<int>(s.objects.size());
-    s.god_triangles += o.god->triangleCount();
-    s.objects.push_back(std::move(o));
-  }
-  return s;
-}
+using testing::boxObject;
+using testing::sceneOf;
 
 Pose at(double x, double y, double z) { return Pose{Vec3(x, y, z), Quat::Identity()}; }
 
@@ -60,7 +39,7 @@ void mix(std::uint64_t* h, const Pose& P) {
 
 // The near scene: a table and a 0.2 kg box on it, which a sphere pushes along +x.
 std::vector<SceneObject> nearObjects() {
-  return {box("table", Vec3(0.5, 0.5, 0.02), at(0, 0, -0.02), 0.0), box("box", Vec3(0.03, 0.03, 0.03), at(0, 0, 0.0302), 0.2)};
+  return {boxObject("table", Vec3(0.5, 0.5, 0.02), at(0, 0, -0.02), 0.0), boxObject("box", Vec3(0.03, 0.03, 0.03), at(0, 0, 0.0302), 0.2)};
 }
 
 struct PushRun {
@@ -114,11 +93,11 @@ TEST(SceneRequires, FarObjectsCostNothingAndChangeNothing) {
   const Scene alone = sceneOf(nearObjects());
   std::vector<SceneObject> with = nearObjects();
   for (int i = 0; i < 200; ++i)
-    with.push_back(box("far_static" + std::to_string(i), Vec3(0.01, 0.01, 0.01), at(5.0 + 0.03 * (i % 20), 3.0 + 0.03 * (i / 20), 0.2), 0.0));
-  with.push_back(box("far_table", Vec3(0.5, 0.5, 0.02), at(-5.0, 0, -0.02), 0.0));
+    with.push_back(boxObject("far_static" + std::to_string(i), Vec3(0.01, 0.01, 0.01), at(5.0 + 0.03 * (i % 20), 3.0 + 0.03 * (i / 20), 0.2), 0.0));
+  with.push_back(boxObject("far_table", Vec3(0.5, 0.5, 0.02), at(-5.0, 0, -0.02), 0.0));
   const int first_far_dynamic = static_cast<int>(with.size());
   for (int i = 0; i < 100; ++i)
-    with.push_back(box("far_dynamic" + std::to_string(i), Vec3(0.01, 0.01, 0.01),
+    with.push_back(boxObject("far_dynamic" + std::to_string(i), Vec3(0.01, 0.01, 0.01),
                        at(-5.3 + 0.06 * (i % 10), -0.3 + 0.06 * (i / 10), 0.0101), 0.05));
   const Scene crowded = sceneOf(std::move(with));
 
@@ -191,7 +170,7 @@ TEST(SceneRequires, BroadPhaseAnswersAsEveryObjectAlone) {
   for (int i = 0; i < 60; ++i) {
     const Vec3 half(0.01 + 0.02 * std::abs(u(rng)), 0.01 + 0.02 * std::abs(u(rng)), 0.01 + 0.02 * std::abs(u(rng)));
     const Pose X{Vec3(0.3 * u(rng), 0.3 * u(rng), 0.1 * u(rng)), Quat(Eigen::AngleAxisd(3.0 * u(rng), Vec3(u(rng), u(rng), 1.0).normalized()))};
-    objects.push_back(box("b" + std::to_string(i), half, X, i % 3 == 0 ? 0.1 : 0.0));
+    objects.push_back(boxObject("b" + std::to_string(i), half, X, i % 3 == 0 ? 0.1 : 0.0));
   }
   const Scene scene = sceneOf(objects);
   std::vector<Scene> singles;
