@@ -193,6 +193,7 @@ RunSummary RunMetrics::summary() const {
 ObjectShares objectShares(const Scene& scene, const std::vector<ObjectCost>& costs,
                           const std::vector<std::uint64_t>& awake_frames, std::uint64_t frames, double frames_us) {
   ObjectShares out;
+  out.simulated = !awake_frames.empty();
   out.frames = frames;
   out.frames_us = frames_us;
   for (size_t o = 0; o < scene.objects.size(); ++o) {
@@ -221,14 +222,17 @@ std::string describe(const ObjectShares& s) {
   std::string line = "God side by object (contacts, sweeps, distances; share of the frame time):";
   size_t named = 0;  // the costliest queried objects
   while (named < order.size() && named < kNamed && s.objects[order[named]].god_queries > 0) ++named;
-  if (named == 0) line += " none queried";
+  if (named == 0) {
+    std::snprintf(buf, sizeof buf, " no object queried (%zu objects)", order.size());
+    line += buf;
+  }
   for (size_t k = 0; k < named; ++k) {
     const ObjectShare& o = s.objects[order[k]];
     std::snprintf(buf, sizeof buf, "%s %s %.1f %% (%.1f us a frame, %llu queries)", k ? "," : "", o.id.c_str(),
                   100.0 * o.god_share, o.god_us * per_frame, static_cast<unsigned long long>(o.god_queries));
     line += buf;
   }
-  if (order.size() > named) {
+  if (named > 0 && order.size() > named) {
     double us = 0.0;
     std::uint64_t queries = 0;
     size_t never = 0;
@@ -237,8 +241,8 @@ std::string describe(const ObjectShares& s) {
       queries += s.objects[order[k]].god_queries;
       never += s.objects[order[k]].god_queries == 0 ? 1 : 0;
     }
-    std::snprintf(buf, sizeof buf, "%s %zu objects %.1f %% together (%llu queries; %zu never queried)",
-                  named ? ", the other" : " of", order.size() - named, s.frames_us > 0.0 ? 100.0 * us / s.frames_us : 0.0,
+    std::snprintf(buf, sizeof buf, ", the other %zu objects %.1f %% together (%llu queries; %zu never queried)",
+                  order.size() - named, s.frames_us > 0.0 ? 100.0 * us / s.frames_us : 0.0,
                   static_cast<unsigned long long>(queries), never);
     line += buf;
   }
@@ -251,7 +255,9 @@ std::string describe(const ObjectShares& s) {
       ++dynamic;
       awake += o.awake_frames;
     }
-  if (dynamic > 0) {
+  if (dynamic > 0 && !s.simulated) {
+    line += ". Dynamic objects not simulated";
+  } else if (dynamic > 0) {
     std::snprintf(buf, sizeof buf, ". Bullet: %zu dynamic objects awake in %llu of %llu object-frames (asleep: not integrated)",
                   dynamic, static_cast<unsigned long long>(awake), static_cast<unsigned long long>(dynamic * s.frames));
     line += buf;

@@ -127,8 +127,9 @@ struct ObjectShares {
   std::uint64_t frames = 0;
   double frames_us = 0.0;            ///< the frames' total time
   double god_us = 0.0;               ///< every object's god_us
+  bool simulated = true;             ///< Bullet ran (awake_frames given)
 };
-/// costs and awake_frames per scene object (awake_frames may be empty: no physics).
+/// costs and awake_frames per scene object (awake_frames empty: no physics).
 ObjectShares objectShares(const Scene& scene, const std::vector<ObjectCost>& costs,
                           const std::vector<std::uint64_t>& awake_frames, std::uint64_t frames, double frames_us);
 /// One line for a summary (the same words in every report).

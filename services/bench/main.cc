@@ -547,8 +547,10 @@ int main(int argc, char** argv) {
   const double hz = median > 0 ? 1e6 / median : 0.0;
   const double margin = params.step.rows.margin;
   // Each object's share of the frame time (core/pipeline/run_metrics.h).
-  std::vector<std::uint64_t> awake(scene.objects.size(), 0);
-  for (const ObjectTrack& t : tracks) awake[static_cast<size_t>(t.index)] = t.awake_frames;
+  std::vector<std::uint64_t> awake;  // empty: no Bullet world
+  if (pipe->physics()) awake.assign(scene.objects.size(), 0);
+  for (const ObjectTrack& t : tracks)
+    if (!awake.empty()) awake[static_cast<size_t>(t.index)] = t.awake_frames;
   double frames_us = 0.0;
   for (double us : step_us) frames_us += us;
   const ObjectShares shares = objectShares(scene, pipe->godCosts(), awake, n_frames, frames_us);
