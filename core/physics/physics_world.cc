@@ -138,6 +138,11 @@ struct PhysicsWorld::Impl {
     Vec3 force = Vec3::Zero();  ///< accumulated God-hand wrench for the next step
     Vec3 torque = Vec3::Zero();
     bool has_wrench = false;
+    // X_WO as pose() computes it, kept while Bullet cannot have moved the body (static, or asleep
+    // through a whole step): a scene of many resting objects does not convert every transform
+    // every frame. Invalidated by a step in which the body was awake and by setPose.
+    mutable Pose X_WO_cached;
+    mutable bool cached = false;
     std::unique_ptr<btTriangleMesh> mesh;
     std::unique_ptr<btCollisionShape> shape;
     std::unique_ptr<btRigidBody> body;
@@ -151,6 +156,7 @@ struct PhysicsWorld::Impl {
   std::unique_ptr<btSequentialImpulseConstraintSolver> solver;
   std::unique_ptr<btDiscreteDynamicsWorld> world;
   std::vector<Object> objects;
+  std::vector<Object*> moving;  ///< the dynamic objects (only they take wrenches and move)
 
   ~Impl() {
     if (world) {
@@ -361,8 +367,17 @@ PhysicsWorld::PhysicsWorld(const Scene& scene, PhysicsParams params) : impl_(std
   s.world->setGravity(toBt(scene.gravity));
   // Deterministic: fixed solver order, no randomisation (the default mode has none; make it explicit).
   s.world->getSolverInfo().m_solverMode &= ~SOLVER_RANDMIZE_ORDER;
+  // Only awake bodies get their broad-phase boxes recomputed each substep (Bullet's default
+  // recomputes every object's, static and asleep too: 1,000 static boxes cost ~60 us a frame).
+  // Static and sleeping bodies do not move; setPose updates a moved body's box itself.
+  s.world->setForceUpdateAllAabbs(false);
   s.objects.resize(scene.objects.size());
-  for (size_t i = 0; i < scene.objects.size(); ++i) s.build(scene.objects[i], static_cast<int>(i));
+  dynamic_.assign(scene.objects.size(), 0);
+  for (size_t i = 0; i < scene.objects.size(); ++i) {
+    s.build(scene.objects[i], static_cast<int>(i));
+    dynamic_[i] = s.objects[i].dynamic ? 1 : 0;
+    if (s.objects[i].dynamic) s.moving.push_back(&s.objects[i]);
+  }
 }
 
 PhysicsWorld::~PhysicsWorld() = default;
@@ -371,7 +386,19 @@ PhysicsWorld& PhysicsWorld::operator=(PhysicsWorld&&) noexcept = default;
 
 const PhysicsParams& PhysicsWorld::params() const { return impl_->params; }
 int PhysicsWorld::objectCount() const { return static_cast<int>(impl_->objects.size()); }
-bool PhysicsWorld::isDynamic(int object) const { return impl_->at(object).dynamic; }
+void PhysicsWorld::outOfRange(int object) const {
+  impl_->at(object);  // throws std::out_of_range naming the index
+  throw std::out_of_range("PhysicsWorld: object index " + std::to_string(object));
+}
+bool PhysicsWorld::isAwake(int object) const {
+  const Impl::Object& o = impl_->at(object);
+  return o.dynamic && o.body->isActive();
+}
+int PhysicsWorld::awakeCount() const {
+  int n = 0;
+  for (const Impl::Object* o : impl_->moving) n += o->body->isActive() ? 1 : 0;
+  return n;
+}
 bool PhysicsWorld::isSimulated(int object) const { return impl_->at(object).simulated; }
 const PhysicsCounters& PhysicsWorld::counters() const { return impl_->counters; }
 
@@ -398,7 +425,8 @@ void PhysicsWorld::step(double dt) {
   if (!(std::isfinite(dt) && dt >= 0.0))
     throw std::invalid_argument("PhysicsWorld::step: dt must be finite and >= 0, got " + fmt(dt));
   auto clearWrenches = [&] {
-    for (Impl::Object& o : s.objects) {
+    for (Impl::Object* d : s.moving) {
+      Impl::Object& o = *d;
       o.force.setZero();
       o.torque.setZero();
       o.has_wrench = false;
@@ -421,7 +449,8 @@ void PhysicsWorld::step(double dt) {
 
   // Clamp each object's wrench once per step.
   const double fmax = s.params.max_force_per_object;
-  for (Impl::Object& o : s.objects) {
+  for (Impl::Object* d : s.moving) {
+    Impl::Object& o = *d;
     if (!o.has_wrench) continue;
     bool clamped = false;
     const double fn = o.force.norm();
@@ -442,17 +471,23 @@ void PhysicsWorld::step(double dt) {
     if (clamped) ++s.counters.forces_clamped;
   }
 
+  // Bodies awake before the step (or woken by it, below) may move: their cached poses go.
+  for (Impl::Object* o : s.moving)
+    if (o->body->isActive()) o->cached = false;
   for (long long i = 0; i < n; ++i) {
-    for (Impl::Object& o : s.objects) {
-      if (!o.has_wrench) continue;
-      o.body->applyCentralForce(toBt(o.force));
-      o.body->applyTorque(toBt(o.torque));
+    for (Impl::Object* o : s.moving) {
+      if (!o->has_wrench) continue;
+      o->body->applyCentralForce(toBt(o->force));
+      o->body->applyTorque(toBt(o->torque));
     }
     // maxSubSteps = 0: exactly one internal step of h (Bullet clears the forces after it).
     s.world->stepSimulation(h, 0, h);
-    for (Impl::Object& o : s.objects)
-      if (o.dynamic) s.clampSpeeds(o);
+    // A sleeping body is not integrated and rests below its sleeping thresholds, far under the clamps.
+    for (Impl::Object* o : s.moving)
+      if (o->body->isActive()) s.clampSpeeds(*o);
   }
+  for (Impl::Object* o : s.moving)
+    if (o->body->isActive()) o->cached = false;
   clearWrenches();
   ++s.counters.steps;
   s.counters.substeps += static_cast<std::uint64_t>(n);
@@ -461,7 +496,11 @@ void PhysicsWorld::step(double dt) {
 Pose PhysicsWorld::pose(int object) const {
   const Impl::Object& o = impl_->at(object);
   if (!o.simulated) return o.X_WO_unsimulated;
-  return fromBt(o.body->getWorldTransform()) * o.X_OC.inverse();
+  if (!o.cached) {
+    o.X_WO_cached = fromBt(o.body->getWorldTransform()) * o.X_OC.inverse();
+    o.cached = true;
+  }
+  return o.X_WO_cached;
 }
 
 Vec3 PhysicsWorld::pointVelocity(int object, const Vec3& p_W) const {
@@ -497,6 +536,7 @@ void PhysicsWorld::setPose(int object, const Pose& X_WO) {
   o.force.setZero();
   o.torque.setZero();
   o.has_wrench = false;
+  o.cached = false;
   if (!o.simulated) return;
   btRigidBody& b = *o.body;
   const btTransform T = toBt(X * o.X_OC);
@@ -514,8 +554,7 @@ void PhysicsWorld::setPose(int object, const Pose& X_WO) {
   if (o.dynamic) {
     b.activate(true);
   } else {  // a moved static object: wake everything that may have rested on it
-    for (Impl::Object& other : s.objects)
-      if (other.dynamic) other.body->activate(true);
+    for (Impl::Object* other : s.moving) other->body->activate(true);
   }
 }
 

@@ -22,6 +22,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "math/pose.h"
 #include "scene/scene.h"
@@ -75,9 +76,19 @@ class PhysicsWorld {
   int objectCount() const;
   /// True for simulated objects with mass > 0. Object indices are positions in Scene::objects;
   /// every accessor throws std::out_of_range for an index outside [0, objectCount()).
-  bool isDynamic(int object) const;
+  bool isDynamic(int object) const {  // inline: the scene stage asks it per (God object, object)
+    if (object < 0 || object >= static_cast<int>(dynamic_.size())) outOfRange(object);
+    return dynamic_[static_cast<size_t>(object)] != 0;
+  }
   /// True when the object is in the Bullet world (shape type not None).
   bool isSimulated(int object) const;
+  /// True for a dynamic object Bullet is simulating now; false for static ones and for dynamic
+  /// objects asleep (Bullet deactivates a body that has rested, below 1 cm/s and 0.05 rad/s, for
+  /// 2 s; a God-hand force, setPose or a body that hits it wakes it). A sleeping body costs no
+  /// integration, no broad-phase update and no pose conversion.
+  bool isAwake(int object) const;
+  /// The dynamic objects awake now.
+  int awakeCount() const;
 
   /// Accumulates a God-hand force f_W (N, world frame) applied at world point p_W on `object`
   /// for the next step(): net force f_W plus torque (p_W − com_W) × f_W, com_W taken now.
@@ -113,8 +124,10 @@ class PhysicsWorld {
   std::uint64_t stateHash() const;
 
  private:
+  [[noreturn]] void outOfRange(int object) const;
   struct Impl;
   std::unique_ptr<Impl> impl_;
+  std::vector<unsigned char> dynamic_;  ///< per object: simulated with mass (isDynamic)
 };
 
 }  // namespace godhand

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace godhand {
 
@@ -38,6 +39,12 @@ geo::Aabb sweptBox(const Vec3& a, const Vec3& b, double r) {
 
 CollisionWorld::CollisionWorld(const Scene& scene) {
   objects_.reserve(scene.objects.size());
+  union_box_.resize(scene.objects.size());
+  leaf_of_.assign(scene.objects.size(), -1);
+  split_key_.resize(scene.objects.size());
+  is_moved_.assign(scene.objects.size(), 0);
+  moved_.reserve(scene.objects.size());
+  costs_.resize(scene.objects.size());
   for (const SceneObject& so : scene.objects) {
     Object o;
     o.god = so.god.get();
@@ -45,20 +52,165 @@ CollisionWorld::CollisionWorld(const Scene& scene) {
     o.dynamic = so.mass > 0.0;
     o.skin = std::isfinite(so.god_skin) && so.god_skin > 0.0 ? so.god_skin : 0.0;
     objects_.push_back(o);
-    setObjectPose(static_cast<int>(objects_.size()) - 1, so.X_WO);
+    place(objects_.size() - 1, so.X_WO);
   }
   near_.reserve(1024);
   shell_.reserve(1024);
   order_.reserve(1024);
   sample_.reserve(64);
   kept_.reserve(16);
+  cand_.reserve(scene.objects.size());
+  stack_.reserve(128);
+  build_ids_.reserve(scene.objects.size());
+  nodes_.reserve(2 * scene.objects.size());
+  if (objectCount() > kLinearUpTo) buildTree();
 }
 
-void CollisionWorld::setObjectPose(int object, const Pose& X_WO) {
-  Object& o = objects_[static_cast<size_t>(object)];
+void CollisionWorld::place(size_t object, const Pose& X_WO) {
+  Object& o = objects_[object];
   o.X_WO = X_WO;
   o.box_W = o.god ? geo::transformAabb(o.god->bounds(), X_WO).inflated(o.skin) : geo::Aabb{};
   o.ref_box_W = o.reference ? geo::transformAabb(o.reference->bounds(), X_WO) : geo::Aabb{};
+  geo::Aabb u = o.box_W;
+  u.grow(o.ref_box_W);
+  geo::Aabb& old = union_box_[object];
+  if (u.lo != old.lo || u.hi != old.hi) {
+    old = u;
+    if (leaf_of_[object] < 0) {
+      rebuild_ = true;  // not in the tree (it had no box)
+    } else if (!is_moved_[object]) {
+      is_moved_[object] = 1;
+      moved_.push_back(static_cast<int>(object));
+    }
+  }
+}
+
+void CollisionWorld::setObjectPose(int object, const Pose& X_WO) {
+  const Object& o = objects_[static_cast<size_t>(object)];
+  // The same pose again (a resting object in every snapshot): nothing to recompute.
+  if (X_WO.p == o.X_WO.p && X_WO.q.coeffs() == o.X_WO.q.coeffs()) return;
+  place(static_cast<size_t>(object), X_WO);
+}
+
+void CollisionWorld::resetCosts() {
+  std::fill(costs_.begin(), costs_.end(), ObjectCost{});
+  visited_ = 0;
+}
+
+void CollisionWorld::CostClock::charge(size_t object) {
+  if (!on_) return;
+  const std::chrono::steady_clock::time_point t = std::chrono::steady_clock::now();
+  ObjectCost& c = w_.costs_[object];
+  c.us += std::chrono::duration<double, std::micro>(t - t_).count();
+  ++c.queries;
+  t_ = t;
+}
+
+void CollisionWorld::buildTree() const {
+  nodes_.clear();
+  build_ids_.clear();
+  std::fill(leaf_of_.begin(), leaf_of_.end(), -1);
+  for (int i = 0; i < objectCount(); ++i)
+    if (!union_box_[static_cast<size_t>(i)].empty()) build_ids_.push_back(i);
+  if (!build_ids_.empty()) buildNode(build_ids_.data(), static_cast<int>(build_ids_.size()), -1);
+  for (int o : moved_) is_moved_[static_cast<size_t>(o)] = 0;
+  moved_.clear();
+  moved_since_build_ = 0;
+  rebuild_ = false;
+}
+
+int CollisionWorld::buildNode(int* ids, int count, int parent) const {
+  const int me = static_cast<int>(nodes_.size());
+  nodes_.emplace_back();
+  geo::Aabb box, centres;
+  for (int k = 0; k < count; ++k) {
+    const geo::Aabb& b = union_box_[static_cast<size_t>(ids[k])];
+    box.grow(b);
+    centres.grow(b.centre());
+  }
+  nodes_[static_cast<size_t>(me)].box = box;
+  nodes_[static_cast<size_t>(me)].parent = parent;
+  if (count == 1) {
+    nodes_[static_cast<size_t>(me)].object = ids[0];
+    leaf_of_[static_cast<size_t>(ids[0])] = me;
+    return me;
+  }
+  int axis = 0;
+  centres.extent().maxCoeff(&axis);
+  for (int k = 0; k < count; ++k) {  // the split key (twice the centre), once per object
+    const geo::Aabb& b = union_box_[static_cast<size_t>(ids[k])];
+    split_key_[static_cast<size_t>(ids[k])] = b.lo[axis] + b.hi[axis];
+  }
+  const int mid = count / 2;
+  std::nth_element(ids, ids + mid, ids + count, [&](int a, int b) {
+    const double ka = split_key_[static_cast<size_t>(a)], kb = split_key_[static_cast<size_t>(b)];
+    return ka < kb || (ka == kb && a < b);
+  });
+  buildNode(ids, mid, me);  // the left child: node me + 1
+  const int right = buildNode(ids + mid, count - mid, me);
+  nodes_[static_cast<size_t>(me)].right = right;
+  return me;
+}
+
+void CollisionWorld::refitTree() const {
+  if (moved_.size() * 16 > nodes_.size()) {  // many moved: one pass from the leaves up (children after parents)
+    for (size_t i = nodes_.size(); i-- > 0;) {
+      Node& nd = nodes_[i];
+      if (nd.object >= 0) {
+        nd.box = union_box_[static_cast<size_t>(nd.object)];
+      } else {
+        nd.box = nodes_[i + 1].box;
+        nd.box.grow(nodes_[static_cast<size_t>(nd.right)].box);
+      }
+    }
+    for (int o : moved_) is_moved_[static_cast<size_t>(o)] = 0;
+    moved_since_build_ += moved_.size();
+    moved_.clear();
+    return;
+  }
+  for (int o : moved_) {  // a few moved: their leaves and the paths up
+    is_moved_[static_cast<size_t>(o)] = 0;
+    int i = leaf_of_[static_cast<size_t>(o)];
+    nodes_[static_cast<size_t>(i)].box = union_box_[static_cast<size_t>(o)];
+    for (i = nodes_[static_cast<size_t>(i)].parent; i >= 0; i = nodes_[static_cast<size_t>(i)].parent) {
+      Node& nd = nodes_[static_cast<size_t>(i)];
+      nd.box = nodes_[static_cast<size_t>(i) + 1].box;
+      nd.box.grow(nodes_[static_cast<size_t>(nd.right)].box);
+    }
+  }
+  moved_since_build_ += moved_.size();
+  moved_.clear();
+}
+
+const std::vector<int>& CollisionWorld::candidates(const geo::Aabb& query) const {
+  cand_.clear();
+  const int n = objectCount();
+  if (n <= kLinearUpTo) {
+    for (int i = 0; i < n; ++i) cand_.push_back(i);
+    if (untimed_ == 0) visited_ += cand_.size();
+    return cand_;
+  }
+  if (rebuild_ || moved_since_build_ + moved_.size() >= std::max<std::size_t>(kRebuildAfter, kRebuildFactor * static_cast<size_t>(n)))
+    buildTree();
+  else if (!moved_.empty()) refitTree();
+  if (nodes_.empty() || !nodes_[0].box.overlaps(query)) return cand_;
+  stack_.clear();
+  stack_.push_back(0);
+  while (!stack_.empty()) {
+    const int i = stack_.back();
+    stack_.pop_back();
+    const Node& nd = nodes_[static_cast<size_t>(i)];
+    if (!nd.box.overlaps(query)) continue;
+    if (nd.object >= 0) {
+      cand_.push_back(nd.object);
+    } else {
+      stack_.push_back(nd.right);
+      stack_.push_back(i + 1);
+    }
+  }
+  std::sort(cand_.begin(), cand_.end());  // index order: the answers of a scan over every object
+  if (untimed_ == 0) visited_ += cand_.size();
+  return cand_;
 }
 
 bool CollisionWorld::insideGod(const Object& o, const Pose& X_OB) const {
@@ -79,9 +231,12 @@ int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body
   int num_samples = 0;
   double samples_skin = -1.0;
   int added = 0;
-  for (size_t oi = 0; oi < objects_.size(); ++oi) {
+  CostClock clock(*this);
+  for (const int object : candidates(query_W)) {
+    const size_t oi = static_cast<size_t>(object);
     const Object& o = objects_[oi];
     if (!o.god || !o.box_W.overlaps(query_W)) continue;
+    const Charge charge(clock, oi);
     const Shape shape = grown(body_shape, o.skin);
     if (o.skin != samples_skin) {
       // Sample shapes (body frame): the whole shape, plus the capsule's end spheres or the box's
@@ -195,9 +350,12 @@ geo::SweepResult CollisionWorld::sweep(const Shape& shape, const Pose& X_W0, con
   if (object_hit) *object_hit = -1;
   int total_iterations = 0;
   const geo::Aabb swept = sweptBox(X_W0.p, X_W1.p, geo::boundingRadius(shape) + params.stop_distance);
-  for (size_t oi = 0; oi < objects_.size(); ++oi) {
+  CostClock clock(*this);
+  for (const int object : candidates(swept)) {
+    const size_t oi = static_cast<size_t>(object);
     const Object& o = objects_[oi];
     if (!o.god || !o.box_W.overlaps(swept)) continue;
+    const Charge charge(clock, oi);
     const Pose X_WOinv = o.X_WO.inverse();
     const geo::SweepResult r = geo::sweep(grown(shape, o.skin), X_WOinv * X_W0, X_WOinv * X_W1, *o.god, params);
     total_iterations += r.iterations;
@@ -424,7 +582,8 @@ double CollisionWorld::penetration(const Shape& shape, const Pose& X_WB, int* ob
   double deepest = 0.0;
   if (object) *object = -1;
   const geo::Aabb box = geo::shapeAabb(shape, X_WB);
-  for (size_t oi = 0; oi < objects_.size(); ++oi) {
+  for (const int candidate : candidates(box)) {
+    const size_t oi = static_cast<size_t>(candidate);
     const Object& o = objects_[oi];
     if (!o.reference || !o.ref_box_W.overlaps(box)) continue;
     const double depth = depthIn(o, shape, X_WB);
@@ -440,7 +599,20 @@ double CollisionWorld::signedDistance(int object, const Shape& body_shape, const
                                       Vec3* n_W) const {
   const Object& o = objects_[static_cast<size_t>(object)];
   const Shape shape = grown(body_shape, o.skin);
-  if (!o.god || !o.box_W.overlaps(geo::shapeAabb(shape, X_WB).inflated(range))) return kInf;
+  if (!o.god) return kInf;
+  // Callers ask every object about one body in turn: its query box is computed once.
+  if (!memo_.valid || memo_.range != range || memo_.shape.type != shape.type || memo_.shape.radius != shape.radius ||
+      memo_.shape.half_length != shape.half_length || memo_.shape.half_extents != shape.half_extents ||
+      memo_.X.p != X_WB.p || memo_.X.q.coeffs() != X_WB.q.coeffs()) {
+    memo_.valid = true;
+    memo_.shape = shape;
+    memo_.X = X_WB;
+    memo_.range = range;
+    memo_.box = geo::shapeAabb(shape, X_WB).inflated(range);
+  }
+  if (!o.box_W.overlaps(memo_.box)) return kInf;
+  CostClock clock(*this);
+  const Charge charge(clock, static_cast<size_t>(object));
   const Pose X_OB = o.X_WO.inverse() * X_WB;
   geo::NearTriangle c;
   const geo::Aabb& gb = o.god->bounds();
@@ -460,19 +632,32 @@ double CollisionWorld::signedDistance(int object, const Shape& body_shape, const
 }
 
 double CollisionWorld::clearance(const Shape& body_shape, const Pose& X_WB, double range) const {
+  return nearest(false, body_shape, X_WB, range);
+}
+
+double CollisionWorld::referenceClearance(const Shape& shape, const Pose& X_WB, double range) const {
+  return nearest(true, shape, X_WB, range);
+}
+
+double CollisionWorld::nearest(bool reference, const Shape& body_shape, const Pose& X_WB, double range) const {
   double best = kInf;
   const geo::Aabb box = geo::shapeAabb(body_shape, X_WB).inflated(range);
-  for (const Object& o : objects_) {
-    if (!o.god || !o.box_W.overlaps(box)) continue;
-    const Shape shape = grown(body_shape, o.skin);
+  CostClock clock(*this);
+  for (const int object : candidates(box)) {
+    const Object& o = objects_[static_cast<size_t>(object)];
+    const geo::MeshBvh* mesh = reference ? o.reference : o.god;
+    if (!mesh || !(reference ? o.ref_box_W : o.box_W).overlaps(box)) continue;
+    std::optional<Charge> charge;  // the God side's cost; the reference is a measurement
+    if (!reference) charge.emplace(clock, static_cast<size_t>(object));
+    const Shape shape = reference ? body_shape : grown(body_shape, o.skin);
     const Pose X_OB = o.X_WO.inverse() * X_WB;
-    const geo::Aabb& gb = o.god->bounds();
+    const geo::Aabb& gb = mesh->bounds();
     const bool in_box = (X_OB.p.array() >= gb.lo.array()).all() && (X_OB.p.array() <= gb.hi.array()).all();
     geo::NearTriangle c;
-    if (in_box && o.god->inside(X_OB.p)) {
-      o.god->closest(shape, X_OB, kInf, &c);
+    if (in_box && mesh->inside(X_OB.p)) {
+      mesh->closest(shape, X_OB, kInf, &c);
       best = std::min(best, -(c.closest.core_distance + geo::coreRadius(shape)));
-    } else if (o.god->closest(shape, X_OB, range, &c)) {
+    } else if (mesh->closest(shape, X_OB, range, &c)) {
       best = std::min(best, c.closest.distance);
     }
   }

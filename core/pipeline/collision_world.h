@@ -24,8 +24,18 @@
 // other, so this sees a cube's corner in a palm's face and a bar's edge across it, which the
 // distance alone reads as touching. The scene's push-out and the start search use the same
 // measure on the God meshes (signedDistance).
+//
+// What a scene requires (issue 14): every query first asks a box tree over the objects' boxes
+// which objects it can reach, so an object no God object comes near costs no query at all (a
+// thousand far objects add nothing measurable; the answers are the same as a scan over every
+// object: candidates are visited in index order). Each object's share of the God side is
+// measured: the time of its contact, sweep and distance queries (one clock read per object
+// queried, none per triangle), `costs()`. Penetration is a measurement, not the method: it is
+// not counted, nor is what runs under an `Untimed` guard (the run metrics' own sweeps).
+// Not thread-safe: one thread at a time per world (each stage has its own).
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <vector>
 
@@ -49,10 +59,35 @@ struct ContactParams {
   double shell = 3e-4;
 };
 
+/// One object's share of the God side (CollisionWorld::costs).
+struct ObjectCost {
+  double us = 0.0;              ///< time of its contact, sweep and distance queries
+  std::uint64_t queries = 0;    ///< queries that reached it (its box near the God object)
+};
+
 class CollisionWorld {
  public:
   /// The scene must outlive the world (its BVHs are shared, not copied).
   explicit CollisionWorld(const Scene& scene);
+
+  /// Per object (scene order): what its queries cost so far.
+  const std::vector<ObjectCost>& costs() const { return costs_; }
+  /// Objects the broad phase handed to queries so far (each one costs a box test; a scan would
+  /// hand every object to every query).
+  std::uint64_t objectsVisited() const { return visited_; }
+  void resetCosts();
+  /// While one lives, queries of `world` are not counted in its costs (measurements that use the
+  /// method's queries, e.g. the run metrics' stuck-frame sweeps).
+  class Untimed {
+   public:
+    explicit Untimed(const CollisionWorld& world) : world_(world) { ++world_.untimed_; }
+    ~Untimed() { --world_.untimed_; }
+    Untimed(const Untimed&) = delete;
+    Untimed& operator=(const Untimed&) = delete;
+
+   private:
+    const CollisionWorld& world_;
+  };
 
   int objectCount() const { return static_cast<int>(objects_.size()); }
   void setObjectPose(int object, const Pose& X_WO);
@@ -74,6 +109,9 @@ class CollisionWorld {
   /// Smallest signed distance (m) to the God-collision meshes within `range` (inside ⇒ < 0):
   /// +inf when nothing is within range.
   double clearance(const Shape& shape, const Pose& X_WB, double range) const;
+  /// The same against the full-resolution reference meshes, with the shape as it is (no skin):
+  /// how far the God object really is from the true surface (a measurement, not counted in costs).
+  double referenceClearance(const Shape& shape, const Pose& X_WB, double range) const;
   /// Signed distance (m, inside ⇒ < 0) of the shape to one object's God mesh within `range`
   /// (+inf beyond), and the unit normal from the object towards the shape (world).
   double signedDistance(int object, const Shape& shape, const Pose& X_WB, double range, Vec3* n_W) const;
@@ -105,6 +143,78 @@ class CollisionWorld {
     bool dynamic = false;
   };
   bool insideGod(const Object& o, const Pose& X_OB) const;
+  void place(size_t object, const Pose& X_WO);
+  double nearest(bool reference, const Shape& shape, const Pose& X_WB, double range) const;
+
+  /// The objects whose God or reference box may overlap `query`, ascending, in cand_.
+  const std::vector<int>& candidates(const geo::Aabb& query) const;
+  /// The box tree over the objects' boxes (God ∪ reference): nodes in pre-order (children after
+  /// their parent), a leaf holds one object. A moved object's leaf and its ancestors are refitted
+  /// at the next query; the tree is rebuilt once kRebuildFactor times as many boxes moved as it has
+  /// objects (at least kRebuildAfter), or when an object without a box gets one (a tree's shape
+  /// only changes how fast it answers, never what).
+  struct Node {
+    geo::Aabb box;
+    int parent = -1;
+    int right = -1;   ///< inner node: its right child (the left one is the next node)
+    int object = -1;  ///< leaf: the object
+  };
+  void buildTree() const;
+  int buildNode(int* ids, int count, int parent) const;
+  void refitTree() const;
+  static constexpr int kLinearUpTo = 8;       ///< up to this many objects: a plain scan
+  static constexpr std::size_t kRebuildAfter = 256;
+  static constexpr std::size_t kRebuildFactor = 8;
+  mutable std::vector<Node> nodes_;
+  mutable std::vector<int> build_ids_;
+  mutable std::vector<int> leaf_of_;          ///< per object: its leaf node, -1 when none
+  mutable std::vector<double> split_key_;     ///< per object: scratch of buildNode
+  mutable std::vector<geo::Aabb> union_box_;  ///< per object: box_W ∪ ref_box_W
+  mutable std::vector<int> moved_;            ///< objects whose box changed since the last query
+  mutable std::vector<unsigned char> is_moved_;
+  mutable bool rebuild_ = true;
+  mutable std::size_t moved_since_build_ = 0;
+  mutable std::vector<int> cand_, stack_;     // scratch
+
+  /// Charges each queried object the time since the previous charge (or since begin()):
+  /// one clock read per object.
+  class CostClock {
+   public:
+    explicit CostClock(const CollisionWorld& w) : w_(w), on_(w.untimed_ == 0) {}
+    void charge(size_t object);
+    void begin() {
+      if (on_ && !started_) {
+        t_ = std::chrono::steady_clock::now();
+        started_ = true;
+      }
+    }
+
+   private:
+    const CollisionWorld& w_;
+    bool on_, started_ = false;
+    std::chrono::steady_clock::time_point t_;
+  };
+  /// Begins timing an object's query at construction, charges it at destruction.
+  struct Charge {
+    Charge(CostClock& c, size_t o) : clock(c), object(o) { clock.begin(); }
+    ~Charge() { clock.charge(object); }
+    Charge(const Charge&) = delete;
+    Charge& operator=(const Charge&) = delete;
+    CostClock& clock;
+    size_t object;
+  };
+  mutable std::vector<ObjectCost> costs_;
+  mutable std::uint64_t visited_ = 0;
+  mutable int untimed_ = 0;
+  /// signedDistance's query box of its last call (callers loop over objects for one body).
+  struct BoxMemo {
+    bool valid = false;
+    Shape shape;
+    Pose X;
+    double range = 0.0;
+    geo::Aabb box;
+  };
+  mutable BoxMemo memo_;
 
   std::vector<Object> objects_;
   std::vector<geo::NearTriangle> near_, shell_;  // scratch

@@ -48,6 +48,19 @@ Pipeline::Pipeline(const Scene& scene, std::vector<const HandModel*> hands, Pipe
 
 Pipeline::~Pipeline() = default;
 
+std::vector<ObjectCost> Pipeline::godCosts() const {
+  std::vector<ObjectCost> sum(scene_.objects.size());
+  auto add = [&sum](const CollisionWorld& w) {
+    for (size_t o = 0; o < sum.size() && o < w.costs().size(); ++o) {
+      sum[o].us += w.costs()[o].us;
+      sum[o].queries += w.costs()[o].queries;
+    }
+  };
+  for (const auto& s : solvers_) add(s->collision());
+  add(resolver_->collision());
+  return sum;
+}
+
 const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
   if (inputs.size() != solvers_.size()) throw std::invalid_argument("pipeline: one input per hand expected");
   const Clock::time_point t_frame = Clock::now();

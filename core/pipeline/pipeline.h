@@ -110,6 +110,12 @@ class Pipeline {
   /// Exact penetration (m, ≥ 0) of every God object of a hand against the reference meshes.
   double penetration(int hand) const { return resolver_->penetration(hand); }
 
+  /// Per scene object, the God side's share so far: the time and count of its contact, sweep
+  /// and distance queries in every hand's solver and in the resolver (CollisionWorld::costs).
+  /// The scene stage's push-out queries are not in it (its world is its own); Bullet's time is
+  /// the scene stage's, not split by object.
+  std::vector<ObjectCost> godCosts() const;
+
  private:
   const Scene& scene_;
   PipelineParams params_;

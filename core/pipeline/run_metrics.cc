@@ -32,7 +32,7 @@ struct RunMetrics::Hand {
   const HandModel* model = nullptr;
   std::unique_ptr<HandSolver> twin;
   std::uint64_t frame = 0;
-  std::vector<double> free_err, model_err, lag;
+  std::vector<double> free_err, model_err, lag, gap;
   // The last kWindow + 1 frames in which both the God hand and its twin existed (-1: a gap).
   std::deque<std::pair<std::vector<Pose>, std::vector<Pose>>> window;
   std::vector<Pose> X_prev;  // God poses of the previous frame (empty: none)
@@ -56,6 +56,7 @@ RunMetrics::RunMetrics(const Scene& scene, std::vector<const HandModel*> models,
 RunMetrics::~RunMetrics() = default;
 
 void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const CollisionWorld& world) {
+  const CollisionWorld::Untimed untimed(world);  // measuring is not the method's cost
   Hand& hand = *hands_.at(static_cast<size_t>(h));
   HandSummary& sum = hand.sum;
   const HandModel& m = *hand.model;
@@ -86,6 +87,10 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
   double pen = 0.0;
   for (size_t b = 0; b < n; ++b) pen = std::max(pen, world.penetration(m.bodies[b].shape, X[b]));
   sum.penetration_max_m = std::max(sum.penetration_max_m, pen);
+  for (size_t b = 0; b < n; ++b)  // the contact gap: touching the God side, how far from the true surface
+    if (world.clearance(m.bodies[b].shape, X[b], MetricThresholds::kTouching) <= MetricThresholds::kTouching)
+      hand.gap.push_back(
+          std::min(world.referenceClearance(m.bodies[b].shape, X[b], MetricThresholds::kGapRange), MetricThresholds::kGapRange));
   sum.joint_gap_max_m = std::max(sum.joint_gap_max_m, s.joint_gap);
 
   const bool has_targets = s.tracked && s.targets;
@@ -139,7 +144,7 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
 
 RunSummary RunMetrics::summary() const {
   RunSummary out;
-  std::vector<double> free_all, model_all, lag_all;
+  std::vector<double> free_all, model_all, lag_all, gap_all;
   HandSummary& all = out.all;
   all.name = "all";
   for (const auto& hp : hands_) {
@@ -148,10 +153,12 @@ RunSummary RunMetrics::summary() const {
     s.free_tracking_error_m = spreadOf(hand.free_err);
     s.model_error_m = spreadOf(hand.model_err);
     s.excess_lag_m = spreadOf(hand.lag);
+    s.contact_gap_m = spreadOf(hand.gap);
     out.hands.push_back(s);
     free_all.insert(free_all.end(), hand.free_err.begin(), hand.free_err.end());
     model_all.insert(model_all.end(), hand.model_err.begin(), hand.model_err.end());
     lag_all.insert(lag_all.end(), hand.lag.begin(), hand.lag.end());
+    gap_all.insert(gap_all.end(), hand.gap.begin(), hand.gap.end());
     all.frames += s.frames;
     all.tracked += s.tracked;
     all.started += s.started;
@@ -179,7 +186,83 @@ RunSummary RunMetrics::summary() const {
   all.free_tracking_error_m = spreadOf(free_all);
   all.model_error_m = spreadOf(model_all);
   all.excess_lag_m = spreadOf(lag_all);
+  all.contact_gap_m = spreadOf(gap_all);
   return out;
+}
+
+ObjectShares objectShares(const Scene& scene, const std::vector<ObjectCost>& costs,
+                          const std::vector<std::uint64_t>& awake_frames, std::uint64_t frames, double frames_us) {
+  ObjectShares out;
+  out.simulated = !awake_frames.empty();
+  out.frames = frames;
+  out.frames_us = frames_us;
+  for (size_t o = 0; o < scene.objects.size(); ++o) {
+    ObjectShare sh;
+    sh.id = scene.objects[o].id;
+    sh.dynamic = scene.objects[o].mass > 0.0;
+    if (o < costs.size()) {
+      sh.god_us = costs[o].us;
+      sh.god_queries = costs[o].queries;
+    }
+    sh.god_share = frames_us > 0.0 ? sh.god_us / frames_us : 0.0;
+    if (o < awake_frames.size()) sh.awake_frames = awake_frames[o];
+    out.god_us += sh.god_us;
+    out.objects.push_back(sh);
+  }
+  return out;
+}
+
+std::string describe(const ObjectShares& s) {
+  constexpr size_t kNamed = 4;  // the costliest objects by name, the rest together
+  std::vector<size_t> order(s.objects.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return s.objects[a].god_us > s.objects[b].god_us; });
+  const double per_frame = s.frames > 0 ? 1.0 / static_cast<double>(s.frames) : 0.0;
+  char buf[256];
+  std::string line = "God side by object (contacts, sweeps, distances; share of the frame time):";
+  size_t named = 0;  // the costliest queried objects
+  while (named < order.size() && named < kNamed && s.objects[order[named]].god_queries > 0) ++named;
+  if (named == 0) {
+    std::snprintf(buf, sizeof buf, " no object queried (%zu objects)", order.size());
+    line += buf;
+  }
+  for (size_t k = 0; k < named; ++k) {
+    const ObjectShare& o = s.objects[order[k]];
+    std::snprintf(buf, sizeof buf, "%s %s %.1f %% (%.1f us a frame, %llu queries)", k ? "," : "", o.id.c_str(),
+                  100.0 * o.god_share, o.god_us * per_frame, static_cast<unsigned long long>(o.god_queries));
+    line += buf;
+  }
+  if (named > 0 && order.size() > named) {
+    double us = 0.0;
+    std::uint64_t queries = 0;
+    size_t never = 0;
+    for (size_t k = named; k < order.size(); ++k) {
+      us += s.objects[order[k]].god_us;
+      queries += s.objects[order[k]].god_queries;
+      never += s.objects[order[k]].god_queries == 0 ? 1 : 0;
+    }
+    std::snprintf(buf, sizeof buf, ", the other %zu objects %.1f %% together (%llu queries; %zu never queried)",
+                  order.size() - named, s.frames_us > 0.0 ? 100.0 * us / s.frames_us : 0.0,
+                  static_cast<unsigned long long>(queries), never);
+    line += buf;
+  }
+  std::snprintf(buf, sizeof buf, "; all %.1f %%", s.frames_us > 0.0 ? 100.0 * s.god_us / s.frames_us : 0.0);
+  line += buf;
+  size_t dynamic = 0;
+  std::uint64_t awake = 0;
+  for (const ObjectShare& o : s.objects)
+    if (o.dynamic) {
+      ++dynamic;
+      awake += o.awake_frames;
+    }
+  if (dynamic > 0 && !s.simulated) {
+    line += ". Dynamic objects not simulated";
+  } else if (dynamic > 0) {
+    std::snprintf(buf, sizeof buf, ". Bullet: %zu dynamic objects awake in %llu of %llu object-frames (asleep: not integrated)",
+                  dynamic, static_cast<unsigned long long>(awake), static_cast<unsigned long long>(dynamic * s.frames));
+    line += buf;
+  }
+  return line;
 }
 
 }  // namespace godhand

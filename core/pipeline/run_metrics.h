@@ -17,6 +17,12 @@
 //                  is free (swept against the scene as it is).
 // Also per hand: penetration (max), joint gap (max), free tracking error (God to target while
 // no contact carries force), frames clipped, frames whose TOC < 1e-3, solve -> sweep rounds.
+// Accuracy of the God side (issue 14, what a coarser God mesh costs):
+//   contact gap    per frame and body touching the God side (within 0.5 mm of the surface the
+//                  method keeps it off: the God mesh, the body grown by the object's AUTO skin),
+//                  its exact distance to the full-resolution surface: ~the contact margin with
+//                  full meshes, up to about twice the AUTO distance with a coarser God side; a
+//                  negative gap is a penetration. Median / p95 / max over those body-frames.
 //
 // No I/O: the caller formats the Summary (services/bench, services/launch).
 #pragma once
@@ -65,6 +71,7 @@ struct HandSummary {
   Spread free_tracking_error_m;        ///< God to targets, frames without load
   Spread model_error_m;                ///< twin to targets: what the model cannot represent
   Spread excess_lag_m;                 ///< see above
+  Spread contact_gap_m;                ///< see above (body-frames touching the God side)
   std::uint64_t lag_above_5mm = 0;
   std::uint64_t moving_windows = 0, frozen_windows = 0;
   std::uint64_t stuck_frames = 0;
@@ -103,6 +110,31 @@ class RunMetrics {
   std::vector<std::unique_ptr<Hand>> hands_;
 };
 
+/// Each scene object's share of the frame time (issue 14, "model only what a scene requires"):
+/// the God side's queries of it (contacts, sweeps, distances: CollisionWorld::costs summed over
+/// the hands' solvers and the resolver, Pipeline::godCosts) against the frames' total time, and
+/// for a dynamic object the frames after which Bullet had it awake (asleep: not integrated).
+struct ObjectShare {
+  std::string id;
+  double god_us = 0.0;             ///< over the run
+  std::uint64_t god_queries = 0;   ///< queries that reached it
+  double god_share = 0.0;          ///< god_us / the frames' total time (0..1)
+  bool dynamic = false;
+  std::uint64_t awake_frames = 0;  ///< dynamic: frames that ended with it awake in Bullet
+};
+struct ObjectShares {
+  std::vector<ObjectShare> objects;  ///< scene order
+  std::uint64_t frames = 0;
+  double frames_us = 0.0;            ///< the frames' total time
+  double god_us = 0.0;               ///< every object's god_us
+  bool simulated = true;             ///< Bullet ran (awake_frames given)
+};
+/// costs and awake_frames per scene object (awake_frames empty: no physics).
+ObjectShares objectShares(const Scene& scene, const std::vector<ObjectCost>& costs,
+                          const std::vector<std::uint64_t>& awake_frames, std::uint64_t frames, double frames_us);
+/// One line for a summary (the same words in every report).
+std::string describe(const ObjectShares& s);
+
 /// The thresholds of the figures above (one definition; reports quote them).
 struct MetricThresholds {
   static constexpr double kLagAbove = 5e-3;      ///< m
@@ -111,6 +143,8 @@ struct MetricThresholds {
   static constexpr int kWindow = 5;              ///< frames
   static constexpr double kAwayFromTarget = 1e-3;  ///< m
   static constexpr double kTinyToc = 1e-3;
+  static constexpr double kTouching = 5e-4;     ///< m: a body this near the God side touches it
+  static constexpr double kGapRange = 0.1;      ///< m: contact gaps beyond it are reported as it
 };
 
 }  // namespace godhand
@@ -139,17 +173,19 @@ inline bool plausible(const RunSummary& s, std::string* why) {
 
 /// One line per hand for a summary (the same words in every report).
 inline std::string describe(const HandSummary& h) {
-  char buf[640];
+  char buf[768];
   std::snprintf(buf, sizeof buf,
                 "%s hand: excess lag (distance to the free twin beyond what the scene forces) median %.2f p95 %.2f max "
                 "%.2f mm, %llu of %zu frames above 5 mm; frozen %llu of %llu moving windows; stuck %llu frames; model "
                 "error (twin to targets: what the hand model cannot follow) median %.2f max %.2f mm; free tracking error "
-                "(no contact loaded) median %.2f max %.2f mm; clipped %llu frames (TOC < 1e-3 in %llu), rounds %llu",
+                "(no contact loaded) median %.2f max %.2f mm; gap to the full surface while touching median %.3f p95 %.3f "
+                "max %.3f mm (%zu body-frames); clipped %llu frames (TOC < 1e-3 in %llu), rounds %llu",
                 h.name.c_str(), h.excess_lag_m.median * 1e3, h.excess_lag_m.p95 * 1e3, h.excess_lag_m.max * 1e3,
                 static_cast<unsigned long long>(h.lag_above_5mm), h.excess_lag_m.count,
                 static_cast<unsigned long long>(h.frozen_windows), static_cast<unsigned long long>(h.moving_windows),
                 static_cast<unsigned long long>(h.stuck_frames), h.model_error_m.median * 1e3, h.model_error_m.max * 1e3,
-                h.free_tracking_error_m.median * 1e3, h.free_tracking_error_m.max * 1e3,
+                h.free_tracking_error_m.median * 1e3, h.free_tracking_error_m.max * 1e3, h.contact_gap_m.median * 1e3,
+                h.contact_gap_m.p95 * 1e3, h.contact_gap_m.max * 1e3, h.contact_gap_m.count,
                 static_cast<unsigned long long>(h.clipped_frames), static_cast<unsigned long long>(h.toc_below_1e3),
                 static_cast<unsigned long long>(h.substeps));
   return buf;

@@ -27,6 +27,7 @@ inline nlohmann::json toJson(const HandSummary& h) {
                         {"stuck_frames", h.stuck_frames},
                         {"model_error_m", toJson(h.model_error_m)},
                         {"free_tracking_error_m", toJson(h.free_tracking_error_m)},
+                        {"contact_gap_m", toJson(h.contact_gap_m)},
                         {"clipped_frames", h.clipped_frames},
                         {"toc_below_1e-3", h.toc_below_1e3},
                         {"substeps", h.substeps},
@@ -41,6 +42,17 @@ inline nlohmann::json toJson(const RunSummary& s) {
   for (const HandSummary& h : s.hands) j["per_hand"][h.name] = toJson(h);
   j["failure"] = s.failure;
   return j;
+}
+
+/// Per object: {id, god_us, god_us_per_frame, god_queries, god_share_pct, dynamic, awake_frames}.
+inline nlohmann::json toJson(const ObjectShare& o, std::uint64_t frames) {
+  return nlohmann::json{{"id", o.id},
+                        {"god_us", o.god_us},
+                        {"god_us_per_frame", frames ? o.god_us / static_cast<double>(frames) : 0.0},
+                        {"god_queries", o.god_queries},
+                        {"god_share_pct", 100.0 * o.god_share},
+                        {"dynamic", o.dynamic},
+                        {"awake_frames", o.awake_frames}};
 }
 
 }  // namespace godhand

@@ -218,6 +218,30 @@ const MeshAsset::AutoChoice& autoGod(MeshAsset& a, double tolerance) {
   return a.auto_choice.emplace(key, std::move(choice)).first->second;
 }
 
+/// The God side of a mesh object as `g` asks (meshScene's spec, godhand-bench's --god-fidelity
+/// over a scene file); `what` begins its errors.
+void setGod(MeshAsset& a, const GodFidelity& g, const std::string& what, SceneObject* o) {
+  using GF = pb::GodGeometry;
+  o->god_skin = 0.0;
+  o->god_note.clear();
+  switch (g.kind) {
+    case GodFidelity::Kind::Decimated:
+      if (g.target_triangles < 4) throw SceneError(what + "decimation needs >= 4 triangles");
+      o->god = godMesh(a, GF::DECIMATED, g.target_triangles);
+      break;
+    case GodFidelity::Kind::Hull: o->god = godMesh(a, GF::CONVEX_HULL, 0); break;
+    case GodFidelity::Kind::Auto: {
+      if (!(g.tolerance_m > 0.0)) throw SceneError(what + "AUTO needs a tolerance > 0");
+      const MeshAsset::AutoChoice& c = autoGod(a, g.tolerance_m);
+      o->god = c.god;
+      o->god_skin = c.skin;
+      o->god_note = c.note;
+      break;
+    }
+    case GodFidelity::Kind::Full: o->god = a.full; break;
+  }
+}
+
 void addTotals(Scene* scene) {
   scene->god_triangles = scene->reference_triangles = 0;
   for (size_t i = 0; i < scene->objects.size(); ++i) {
@@ -249,7 +273,7 @@ std::string lower(std::string s) {
 }  // namespace
 
 Scene parseScene(const std::string& text, const std::string& source, const std::string& base_dir,
-                 const MeshLoader& load_mesh) {
+                 const MeshLoader& load_mesh, const GodFidelity* god_override) {
   pb::Scene msg;
   TextFormat::ParseInfoTree tree;
   std::string syntax;
@@ -359,7 +383,9 @@ Scene parseScene(const std::string& text, const std::string& source, const std::
           o.scale = a.scale;
           o.translation = a.translation;
           o.reference = a.full;
-          if (god_f == GF::AUTO) {
+          if (god_override) {
+            setGod(a, *god_override, where("god") + "(the --god-fidelity given instead) ", &o);
+          } else if (god_f == GF::AUTO) {
             const MeshAsset::AutoChoice& c = autoGod(a, auto_tolerance);
             o.god = c.god;
             o.god_skin = c.skin;
@@ -536,23 +562,7 @@ Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre, const Me
       if (!(extent > 0.0)) throw SceneError("--mesh " + spec.path + ": the mesh has zero extent");
       MeshAsset& a = cache.asset(spec.path, spec.size / extent, true, 0);
       o.reference = a.full;
-      using GF = pb::GodGeometry;
-      switch (spec.god.kind) {
-        case GodFidelity::Kind::Decimated:
-          if (spec.god.target_triangles < 4) throw SceneError("--mesh " + spec.path + ": decimation needs >= 4 triangles");
-          o.god = godMesh(a, GF::DECIMATED, spec.god.target_triangles);
-          break;
-        case GodFidelity::Kind::Hull: o.god = godMesh(a, GF::CONVEX_HULL, 0); break;
-        case GodFidelity::Kind::Auto: {
-          if (!(spec.god.tolerance_m > 0.0)) throw SceneError("--mesh " + spec.path + ": AUTO needs a tolerance > 0");
-          const MeshAsset::AutoChoice& c = autoGod(a, spec.god.tolerance_m);
-          o.god = c.god;
-          o.god_skin = c.skin;
-          o.god_note = c.note;
-          break;
-        }
-        case GodFidelity::Kind::Full: o.god = a.full; break;
-      }
+      setGod(a, spec.god, "--mesh " + spec.path + ": ", &o);
       o.scale = a.scale;
       o.translation = a.translation;
       o.physics.type = PhysicsShapeType::TriangleMesh;

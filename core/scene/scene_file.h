@@ -43,12 +43,15 @@ class SceneError : public std::runtime_error {
 /// meshes from memory. Called once per distinct path string within one parseScene / meshScene.
 using MeshLoader = std::function<geo::TriangleMesh(const std::string& path)>;
 
+struct GodFidelity;
+
 /// Parses and validates a scene file's text (throws SceneError; mesh errors carry the scene
 /// location followed by the mesh file's own "FILE:LINE: reason"). Mesh paths are relative to
 /// `base_dir` and read through `load_mesh`; `source` names the text in errors. (Reading a scene
-/// file is loadScene in services/common/files.h.)
+/// file is loadScene in services/common/files.h.) `god_override`: every mesh object's God side
+/// is that instead of the file's `god` (godhand-bench --god-fidelity; primitives keep theirs).
 Scene parseScene(const std::string& text, const std::string& source, const std::string& base_dir,
-                 const MeshLoader& load_mesh);
+                 const MeshLoader& load_mesh, const GodFidelity* god_override = nullptr);
 
 /// What the God-object collision sees of a `--mesh` object (the scene file's `god` fidelity):
 /// the full mesh, a vertex-clustering decimation to about `target_triangles`, the convex hull, or

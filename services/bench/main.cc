@@ -53,7 +53,7 @@ const char* kUsage =
     "       godhand-bench --compare mujoco --recording FILE [--mesh FILE[:SIZE_M] ... | --scene FILE --no-physics]\n"
     "                     [--mujoco-timestep S] [--mujoco-weld-timeconst S] [--mujoco-contact-timeconst S] [--json OUT]\n"
     "       godhand-bench --sweep GRID.pbtxt --recording FILE [--scene FILE|none | --mesh FILE[:SIZE_M] ...]\n"
-    "                     [--frames N] [--json OUT] [--plot OUT.png|svg] [--target BOUNDS]\n"
+    "                     [--frames N] [--repeat N] [--json OUT] [--plot OUT.png|svg] [--target BOUNDS]\n"
     "\n"
     "Runs the God-object method in one process, in lock-step over every frame of a tracker\n"
     "recording, against a scene, and reports what it measured: penetration, joint gap, and beside\n"
@@ -67,9 +67,10 @@ const char* kUsage =
     "                        ad-hoc static scene instead: each mesh (OBJ/STL) scaled uniformly so its\n"
     "                        largest extent is SIZE_M (default 0.15) and centred on the recording's\n"
     "                        mean palm position, or at world X,Y,Z (m) when given (repeatable)\n"
-    "  --god-fidelity F      what the God side collides with of each --mesh: full (default), hull,\n"
-    "                        decimated:N (vertex clustering to about N triangles), or auto:MM (the\n"
-    "                        coarsest of those within MM mm of the full surface, the God objects grown\n"
+    "  --god-fidelity F      what the God side collides with of each --mesh, or of each mesh object of the\n"
+    "                        scene file instead of its `god` (primitives keep theirs): full (default for\n"
+    "                        --mesh), hull, decimated:N (vertex clustering to about N triangles), or auto:MM\n"
+    "                        (the coarsest of those within MM mm of the full surface, the God objects grown\n"
     "                        by that distance: scene AUTO); penetration is still measured against the\n"
     "                        full mesh\n"
     "  --hand-model FILE     right-hand model (default deploy/models/hand16_right.pbtxt)\n"
@@ -113,7 +114,8 @@ const char* kUsage =
     "                        (idl/sweep.proto; deploy/sweeps/default.pbtxt) run on the recording and\n"
     "                        scene, figures per point, the Pareto front; --json writes points and\n"
     "                        pareto, --plot draws them (matplotlib), --target \"penetration_max_m<=1e-4,\n"
-    "                        excess_lag_p95_m<=3e-3\" names the fastest point within the bounds\n"
+    "                        excess_lag_p95_m<=3e-3\" names the fastest point within the bounds; --repeat N\n"
+    "                        runs each point N times and takes the median of its timings\n"
     "  --check               exit 1 unless penetration <= margin, joint gap <= 1e-6 m, no solver failures,\n"
     "                        every hand started and was not held in most of its frames, no stuck frame\n"
     "                        and frozen windows <= 5 % of the moving windows\n"
@@ -248,8 +250,7 @@ Args parseArgs(int argc, char** argv) {
   }
   if (a.recording.empty()) fail("--recording FILE is required (see --help)");
   if (!a.scene.empty() && !a.meshes.empty()) fail("--scene and --mesh exclude each other");
-  if (!a.god_fidelity.empty() && a.meshes.empty())
-    fail("--god-fidelity applies to --mesh scenes (a scene file sets each object's god fidelity)");
+  if (!a.god_fidelity.empty() && a.scene == "none") fail("--god-fidelity: --scene none has no objects");
   return a;
 }
 
@@ -327,7 +328,10 @@ int main(int argc, char** argv) {
     } else if (args.scene == "none") {
       scene.name = "none";
     } else {
-      scene = loadScene(args.scene.empty() ? std::string(GODHAND_DEPLOY_DIR) + "/scenes/default.pbtxt" : args.scene);
+      const std::optional<GodFidelity> god =
+          args.god_fidelity.empty() ? std::nullopt : std::optional<GodFidelity>(parseGodFidelity(args.god_fidelity));
+      scene = loadScene(args.scene.empty() ? std::string(GODHAND_DEPLOY_DIR) + "/scenes/default.pbtxt" : args.scene,
+                        god ? &*god : nullptr);
     }
   } catch (const std::exception& e) { fail(e.what()); }
 
@@ -438,6 +442,7 @@ int main(int argc, char** argv) {
     int index = 0;
     Pose start, final_pose;
     double max_rise = 0.0, max_drop = 0.0, max_displacement = 0.0, max_speed = 0.0;
+    std::uint64_t awake_frames = 0;  // frames after which Bullet had it awake
   };
   std::vector<ObjectTrack> tracks;
   for (size_t o = 0; o < scene.objects.size(); ++o)
@@ -488,6 +493,7 @@ int main(int argc, char** argv) {
         t.max_drop = std::max(t.max_drop, -d.z());
         t.max_displacement = std::max(t.max_displacement, d.norm());
         t.max_speed = std::max(t.max_speed, w->linearVelocity(t.index).norm());
+        if (w->isAwake(t.index)) ++t.awake_frames;
       }
     // Figures of METHOD.md §5, outside the timed step (core/pipeline/run_metrics.h).
     for (size_t h = 0; h < H; ++h) {
@@ -541,6 +547,14 @@ int main(int argc, char** argv) {
   const double median = percentile(step_us, 0.5);
   const double hz = median > 0 ? 1e6 / median : 0.0;
   const double margin = params.step.rows.margin;
+  // Each object's share of the frame time (core/pipeline/run_metrics.h).
+  std::vector<std::uint64_t> awake;  // empty: no Bullet world
+  if (pipe->physics()) awake.assign(scene.objects.size(), 0);
+  for (const ObjectTrack& t : tracks)
+    if (!awake.empty()) awake[static_cast<size_t>(t.index)] = t.awake_frames;
+  double frames_us = 0.0;
+  for (double us : step_us) frames_us += us;
+  const ObjectShares shares = objectShares(scene, pipe->godCosts(), awake, n_frames, frames_us);
 
   std::printf("godhand-bench: %s (%s), %zu frames at %.1f Hz, %zu hand(s), scene '%s' (%lld God-collision triangles)\n",
               args.recording.c_str(), rec.format.c_str(), n_frames, rate, H, scene.name.c_str(), scene.god_triangles);
@@ -579,6 +593,7 @@ int main(int argc, char** argv) {
               static_cast<unsigned long long>(c.sweeps_capped), static_cast<unsigned long long>(c.per_body_clips),
               static_cast<unsigned long long>(c.uniform_clips), static_cast<unsigned long long>(c.held_rounds),
               static_cast<unsigned long long>(c.rounds_shortened), static_cast<unsigned long long>(c.rounds_kept));
+  std::printf("  %s\n", describe(shares).c_str());
   for (const ObjectTrack& t : tracks) {
     const Vec3 d = t.final_pose.p - t.start.p;
     std::printf("  object %s: moved (%.4f, %.4f, %.4f) m start -> end, rose at most %.4f m, dropped at most %.4f m, "
@@ -627,6 +642,7 @@ int main(int argc, char** argv) {
     j["frozen_windows"] = all.frozen_windows;
     j["stuck_frames"] = all.stuck_frames;
     j["model_error_m"] = toJson(all.model_error_m);
+    j["contact_gap_m"] = toJson(all.contact_gap_m);
     j["clipped_frames"] = all.clipped_frames;
     j["toc_below_1e-3"] = all.toc_below_1e3;
     j["substeps"] = all.substeps;
@@ -656,8 +672,12 @@ int main(int argc, char** argv) {
     // Every object's placement: file coordinates -> world, p_W = scale R p_file + t (R, t the
     // world pose applied after the scale and the --mesh centring translation).
     nlohmann::json objects = nlohmann::json::array();
-    for (const SceneObject& o : scene.objects) {
+    for (size_t oi = 0; oi < scene.objects.size(); ++oi) {
+      const SceneObject& o = scene.objects[oi];
       const Vec3 t = o.X_WO.p + o.X_WO.q * o.translation;
+      nlohmann::json share = toJson(shares.objects[oi], shares.frames);
+      share.erase("id");
+      share.erase("dynamic");
       objects.push_back({{"id", o.id},
                          {"source", o.source},
                          {"scale", o.scale},
@@ -668,8 +688,11 @@ int main(int argc, char** argv) {
                          {"reference_triangles", o.reference ? o.reference->triangleCount() : 0},
                          {"god_skin_m", o.god_skin},
                          {"god_note", o.god_note}});
+      objects.back().update(share);
     }
     j["objects"] = objects;
+    j["god_side"] = {{"us_per_frame", n_frames ? shares.god_us / static_cast<double>(n_frames) : 0.0},
+                     {"share_pct", frames_us > 0.0 ? 100.0 * shares.god_us / frames_us : 0.0}};
     // The dynamic objects' motion over the run (Bullet's pose after each frame; world, m).
     nlohmann::json motion = nlohmann::json::array();
     for (const ObjectTrack& t : tracks) {

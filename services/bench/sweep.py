@@ -8,8 +8,12 @@ laggy and better in one); with --target, names the fastest point within the stat
 
 usage: godhand-bench --sweep GRID.pbtxt --recording FILE [--mesh FILE[:SIZE] ... | --scene FILE|none] ...
        sweep.py --recording FILE [--mesh FILE[:SIZE] ... | --scene FILE|none] [--grid GRID.pbtxt|GRID.json]
-                [--bench build/bin/godhand-bench] [--frames N] [--json OUT] [--plot OUT.png]
+                [--bench build/bin/godhand-bench] [--frames N] [--repeat N] [--json OUT] [--plot OUT.png]
                 [--target "penetration_max_m<=1e-4,excess_lag_p95_m<=3e-3"]
+
+--repeat N runs every point N times (one after the other) and takes the median of each timing
+figure (frames/s, step and stage times); the other figures are the run's own, and every repeat
+must give the same result hash (else the point fails: not deterministic).
 
 GRID.pbtxt (idl/sweep.proto): `mode: EACH | PRODUCT` and `knobs { option: "--substeps" values: "1"
 values: "3" }`; or GRID.json: {"mode": "each" | "product", "knobs": {"--substeps": ["1", "2"], ...}}.
@@ -18,8 +22,8 @@ values: "3" }`; or GRID.json: {"mode": "each" | "product", "knobs": {"--substeps
 godhand-bench's option value; a value with spaces is split into several arguments
 ("pgs --pgs-iterations 100" under "--solver"; the 6-body hands under "--hand-model" also set
 --left-hand-model; paths are relative to the current directory, the project root). Points of
-"--god-fidelity" (full, hull, decimated:N; penetration still against the full mesh) run only
-with --mesh.
+"--god-fidelity" (full, hull, decimated:N, auto:MM; penetration still against the full mesh) apply
+to the --mesh objects or to the scene file's mesh objects; they are left out with --scene none.
 
 Exit status: 0 ok (also when no point meets --target: it says so), 1 a point's run failed,
 2 bad arguments. Progress on stderr."""
@@ -28,6 +32,7 @@ import itertools
 import json
 import os
 import re
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -50,6 +55,11 @@ FIGURES = [
     ("stuck_frames", ("plausibility", "all", "stuck_frames"), True),
     ("joint_gap_max_m", ("joint_gap_max_m",), True),
     ("kkt_residual_max", ("kkt_residual_max",), True),
+    # The God hand's distance to the full-resolution surface while it touches the God side (what a
+    # coarser God mesh costs in accuracy; ~the contact margin with full meshes).
+    ("contact_gap_median_m", ("contact_gap_m", "median"), True),
+    ("contact_gap_p95_m", ("contact_gap_m", "p95"), True),
+    ("contact_gap_max_m", ("contact_gap_m", "max"), True),
     ("god_triangles", ("triangles",), False),
     ("stage_contacts_us", ("stages_us", "contacts"), False),
     ("stage_solve_us", ("stages_us", "solve"), False),
@@ -60,6 +70,9 @@ FIGURES = [
 # Per-point step-time breakdown (median us per stage, godhand-bench's stages_us) for the plot.
 STAGES = (("stage_contacts_us", "contacts"), ("stage_solve_us", "solve"), ("stage_integrate_us", "integrate + projection"),
           ("stage_ccd_us", "sweeps (CCD)"), ("stage_scene_us", "scene"))
+# Figures measured by the clock (the median of --repeat runs); the others are deterministic.
+TIMINGS = {"hz_median", "step_median_us", "step_p99_us", "stage_contacts_us", "stage_solve_us", "stage_integrate_us",
+           "stage_ccd_us", "stage_scene_us"}
 # The Pareto front is over these (all minimised): time, depth, lag.
 PARETO = ("step_median_us", "penetration_max_m", "excess_lag_p95_m")
 
@@ -134,6 +147,11 @@ def meets(p, bounds):
     return True
 
 
+def gap_text(p):
+    g = [p.get(f"contact_gap_{k}_m") for k in ("median", "p95", "max")]
+    return "-" if any(v is None for v in g) else "/".join(f"{v * 1e3:.2f}" for v in g)
+
+
 def knob_text(knobs):
     return " ".join(f"{k} {v}" for k, v in knobs.items()) or "(defaults)"
 
@@ -184,6 +202,7 @@ def main():
                     help="the grid: protobuf text (idl/sweep.proto, read through godhand-bench) or JSON; default deploy/sweeps/default.pbtxt")
     ap.add_argument("--bench", default=os.path.join(ROOT, "build", "bin", "godhand-bench"), help="godhand-bench to run")
     ap.add_argument("--frames", type=int, default=0, help="only the first N frames of the recording")
+    ap.add_argument("--repeat", type=int, default=1, help="runs per point; timing figures are their medians (default 1)")
     ap.add_argument("--json", help="write the points and the Pareto front here")
     ap.add_argument("--plot", help="draw frames/s against lag and penetration (PNG/SVG; needs matplotlib)")
     ap.add_argument("--target", help="bounds, e.g. penetration_max_m<=1e-4,excess_lag_p95_m<=3e-3: the fastest point within them")
@@ -194,6 +213,8 @@ def main():
         fail(f"no godhand-bench at {a.bench} (build first, or --bench PATH)")
     if a.frames < 0:
         fail("--frames must be >= 0")
+    if not 1 <= a.repeat <= 100:
+        fail("--repeat must be in [1, 100]")
     bounds = parse_target(a.target) if a.target else None
     if a.grid.endswith(".pbtxt"):
         # The grid's text format (idl/sweep.proto) is parsed and checked by godhand-bench itself.
@@ -207,10 +228,10 @@ def main():
         except (OSError, ValueError) as e:
             fail(f"{a.grid}: {e}".replace("\n", " "))
     pts = points_of(grid)
-    if not a.mesh:  # --god-fidelity is a --mesh knob (a scene file sets each object's fidelity)
+    if not a.mesh and a.scene == "none":  # --god-fidelity changes meshes: none there
         kept = [k for k in pts if "--god-fidelity" not in k]
         if len(kept) < len(pts):
-            print(f"godhand-sweep: {len(pts) - len(kept)} --god-fidelity point(s) left out: they apply to --mesh scenes", file=sys.stderr)
+            print(f"godhand-sweep: {len(pts) - len(kept)} --god-fidelity point(s) left out: --scene none has no meshes", file=sys.stderr)
         pts = kept
 
     base = [a.bench, "--recording", a.recording, "--quiet"] + [x for m in a.mesh for x in ("--mesh", m)]
@@ -224,31 +245,45 @@ def main():
             out = os.path.join(tmp, f"{i}.json")
             args = [x for k, v in knobs.items() for x in [k] + v.split()]
             t0 = time.time()
-            r = subprocess.run(base + args + ["--json", out], capture_output=True, text=True)
             p = {"knobs": knobs, "args": args}
-            if r.returncode != 0 or not os.path.exists(out):
-                last = (r.stderr.strip() or r.stdout.strip()).splitlines()[-1:] or ["no output"]
-                p["error"] = f"exit {r.returncode}: {last[0]}"
+            runs = []
+            for _ in range(a.repeat):
+                if os.path.exists(out):
+                    os.remove(out)
+                r = subprocess.run(base + args + ["--json", out], capture_output=True, text=True)
+                if r.returncode != 0 or not os.path.exists(out):
+                    last = (r.stderr.strip() or r.stdout.strip()).splitlines()[-1:] or ["no output"]
+                    p["error"] = f"exit {r.returncode}: {last[0]}"
+                    break
+                runs.append(json.load(open(out)))
+            if "error" not in p and len({j.get("result_hash") for j in runs}) != 1:
+                p["error"] = f"not deterministic: result hashes {sorted({str(j.get('result_hash')) for j in runs})} over {a.repeat} runs"
+            if "error" in p:
                 failed += 1
             else:
-                j = json.load(open(out))
+                j = runs[0]
                 for name, path, _ in FIGURES:
                     p[name] = dig(j, path)
+                    if name in TIMINGS and len(runs) > 1 and p[name] is not None:
+                        p[name] = statistics.median(dig(x, path) for x in runs)
                 p["result_hash"] = j.get("result_hash")
+                p["repeats"] = len(runs)
             points.append(p)
             print(f"godhand-sweep: point {i + 1}/{len(pts)} {knob_text(knobs)}: "
                   + (p["error"] if "error" in p else f"{p['hz_median']:.0f} Hz, penetration {p['penetration_max_m'] * 1e3:.3f} mm, "
                      f"excess lag p95 {p['excess_lag_p95_m'] * 1e3:.2f} mm") + f" ({time.time() - t0:.1f} s)", file=sys.stderr)
     front = pareto(points)
 
-    print(f"{'#':>2} {'Hz':>6} {'p99 ms':>7} {'pen mm':>7} {'lag p95 mm':>10} {'>5mm':>5} {'frozen':>9} {'stuck':>5} {'gap m':>8}  knobs")
+    print(f"{'#':>2} {'Hz':>6} {'p99 ms':>7} {'pen mm':>7} {'lag p95 mm':>10} {'>5mm':>5} {'frozen':>9} {'stuck':>5} {'gap m':>8} "
+          f"{'God tris':>9} {'touch gap mm (med/p95/max)':>26}  knobs")
     for i, p in enumerate(points):
         if "error" in p:
             print(f"{i:>2} failed: {p['error']}  {knob_text(p['knobs'])}")
             continue
         print(f"{i:>2} {p['hz_median']:6.0f} {p['step_p99_us'] / 1e3:7.2f} {p['penetration_max_m'] * 1e3:7.3f} "
               f"{p['excess_lag_p95_m'] * 1e3:10.2f} {p['excess_lag_above_5mm']:5d} {p['frozen_windows']:4d}/{p['moving_windows']:<4d} "
-              f"{p['stuck_frames']:5d} {p['joint_gap_max_m']:8.1e}  {knob_text(p['knobs'])}{'  *' if i in front else ''}")
+              f"{p['stuck_frames']:5d} {p['joint_gap_max_m']:8.1e} {p['god_triangles']:9d} {gap_text(p):>26}  "
+              f"{knob_text(p['knobs'])}{'  *' if i in front else ''}")
     print("* Pareto front (time, penetration, excess lag p95: no other point is at least as good in all three and better in one)")
     chosen = None
     if bounds:
@@ -261,7 +296,7 @@ def main():
             print(f"target: no measured point meets {a.target}")
     if a.json:
         with open(a.json, "w") as f:
-            json.dump({"recording": a.recording, "mesh": a.mesh, "scene": a.scene, "frames": a.frames, "grid": grid,
+            json.dump({"recording": a.recording, "mesh": a.mesh, "scene": a.scene, "frames": a.frames, "repeat": a.repeat, "grid": grid,
                        "points": points, "pareto": front, "pareto_figures": list(PARETO),
                        "target": a.target, "target_point": chosen}, f, indent=2)
     if a.plot:

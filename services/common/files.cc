@@ -44,12 +44,12 @@ MeshLoader meshFileLoader() {
   return [](const std::string& path) { return loadMeshFile(path); };
 }
 
-Scene loadScene(const std::string& path) {
+Scene loadScene(const std::string& path, const GodFidelity* god) {
   std::ifstream in(path, std::ios::binary);
   if (!in || fs::is_directory(path)) throw SceneError(path + ":0: cannot open scene file");
   std::ostringstream ss;
   ss << in.rdbuf();
-  return parseScene(ss.str(), path, fs::path(path).parent_path().string(), meshFileLoader());
+  return parseScene(ss.str(), path, fs::path(path).parent_path().string(), meshFileLoader(), god);
 }
 
 }  // namespace godhand

@@ -27,7 +27,8 @@ MeshLoader meshFileLoader();
 
 /// Reads and validates a scene file, its meshes relative to the file's directory (throws
 /// SceneError; "FILE:0: cannot open scene file" when it cannot be read; mesh errors carry the
-/// scene location followed by the mesh file's own "FILE:LINE: reason").
-Scene loadScene(const std::string& path);
+/// scene location followed by the mesh file's own "FILE:LINE: reason"). `god`: every mesh
+/// object's God side instead of the file's (parseScene's god_override).
+Scene loadScene(const std::string& path, const GodFidelity* god = nullptr);
 
 }  // namespace godhand

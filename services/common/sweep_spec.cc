@@ -88,7 +88,7 @@ std::string sweepSpecJson(const SweepSpec& spec) {
 
 std::vector<std::string> sweepCommand(const std::vector<std::string>& args, const std::string& script,
                                       const std::string& bench) {
-  static const std::set<std::string> kPassed = {"--recording", "--mesh", "--scene", "--frames", "--json", "--plot", "--target"};
+  static const std::set<std::string> kPassed = {"--recording", "--mesh", "--scene", "--frames", "--repeat", "--json", "--plot", "--target"};
   // Debian's python3 (where apt installs python3-matplotlib, for --plot) when it is there.
   std::vector<std::string> cmd = {::access("/usr/bin/python3", X_OK) == 0 ? "/usr/bin/python3" : "python3", script, "--bench", bench};
   std::string grid;
@@ -104,7 +104,7 @@ std::vector<std::string> sweepCommand(const std::vector<std::string>& args, cons
     } else {
       throw SweepSpecError("with --sweep, " + f +
                            " belongs in the grid (a knob), not on the command line; a sweep takes --recording, --mesh, "
-                           "--scene, --frames, --json, --plot and --target");
+                           "--scene, --frames, --repeat, --json, --plot and --target");
     }
   }
   if (grid.empty()) throw SweepSpecError("--sweep GRID.pbtxt is required");

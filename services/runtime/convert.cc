@@ -10,7 +10,6 @@ constexpr std::size_t kMaxLoads = 256;      // HandProposal.loads bound
 constexpr std::size_t kMaxApplied = 320;    // ContactForces.contacts bound
 constexpr std::size_t kMaxGodBodies = 96;   // ContactForces.god_bodies bound
 constexpr std::size_t kMaxWrenches = 64;    // ContactForces.objects bound
-constexpr std::size_t kMaxObjects = 100;    // SceneState.objects bound
 
 Vec3 vec(const std::array<double, 3>& a) { return Vec3(a[0], a[1], a[2]); }
 void put(const Vec3& v, std::array<double, 3>* a) { *a = {v.x(), v.y(), v.z()}; }
@@ -303,7 +302,7 @@ void toWire(const SceneSnapshot& s, msg::SceneState* out) {
   out->forces_applied(s.forces_applied);
   out->pushouts(static_cast<std::uint32_t>(s.pushouts));
   out->step_us(s.step_us);
-  const std::size_t n = std::min(s.objects.size(), kMaxObjects);
+  const std::size_t n = std::min(s.objects.size(), kMaxSceneObjects);
   out->objects().resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     msg::ObjectState& o = out->objects()[i];
@@ -337,7 +336,7 @@ bool fromWire(const msg::SceneState& in, int objects, SceneSnapshot* out, std::s
 void describeScene(const Scene& scene, const std::string& file, msg::SceneDescription* out) {
   out->name(scene.name.substr(0, 64));
   out->file(file.size() <= 160 ? file : file.substr(file.size() - 160));
-  const std::size_t n = std::min(scene.objects.size(), kMaxObjects);
+  const std::size_t n = std::min(scene.objects.size(), kMaxSceneObjects);
   out->objects().resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const SceneObject& so = scene.objects[i];

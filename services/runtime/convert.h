@@ -15,6 +15,10 @@
 
 namespace godhand::svc {
 
+/// Scene objects the wire carries (idl/godhand.idl: SceneState and SceneDescription): a scene of
+/// more is refused by godhand-scene at start-up.
+constexpr std::size_t kMaxSceneObjects = 10000;
+
 /// CLOCK_REALTIME in ns (comparable across the processes of one machine; across machines only
 /// as far as their clocks are synchronised).
 std::int64_t nowNs();

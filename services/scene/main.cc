@@ -60,7 +60,9 @@ int main(int argc, char** argv) {
     cli.fail(e.what());
   }
   const int objects = static_cast<int>(scene.objects.size());
-  if (objects > 100) cli.fail(service.sceneFile() + ": " + std::to_string(objects) + " objects; the wire carries at most 100");
+  if (static_cast<std::size_t>(objects) > svc::kMaxSceneObjects)
+    cli.fail(service.sceneFile() + ": " + std::to_string(objects) + " objects; the wire carries at most " +
+             std::to_string(svc::kMaxSceneObjects));
 
   service.connect();
   // A restarted scene: the dynamic objects start where the lab last saw them (runtime/scene_resume.h).
@@ -134,6 +136,12 @@ int main(int argc, char** argv) {
   svc::describeScene(scene, service.sceneFile(), &description);
   description_out.write(description);
   msg::SceneState out;
+  {  // What this scene puts on the wire (a sample above 64 KB goes out in RTPS fragments).
+    svc::toWire(stage->initial(), &out);
+    std::fprintf(stderr, "scene: on the wire: SceneDescription %zu bytes (once), SceneState %zu bytes a frame (%zu dynamic objects)\n",
+                 msg::SceneDescription::getCdrSerializedSize(description) + 4, msg::SceneState::getCdrSerializedSize(out) + 4,
+                 out.objects().size());
+  }
   auto publish = [&](const SceneSnapshot& s, const msg::Stamp& stamp) {
     svc::toWire(s, &out);
     out.stamp() = svc::derivedStamp(stamp);

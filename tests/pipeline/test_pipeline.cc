@@ -15,6 +15,7 @@
 #include "pipeline/pipeline.h"
 #include "scene/mesh_io.h"
 #include "scene/scene.h"
+#include "box_scene.h"
 #include "probe_model.h"
 
 namespace godhand {
@@ -22,30 +23,8 @@ namespace {
 
 HandModel probeModel(const std::string& shape_text, double mass = 0.02) { return testing::probeModel(shape_text, mass); }
 
-SceneObject boxObject(const std::string& id, const Vec3& half, const Pose& X_WO, double mass) {
-  SceneObject o;
-  o.id = id;
-  o.X_WO = X_WO;
-  o.mass = mass;
-  o.god = std::make_shared<geo::MeshBvh>(boxMesh(half));
-  o.reference = o.god;
-  o.physics.type = PhysicsShapeType::Box;
-  o.physics.half_extents = half;
-  o.source = "box";
-  return o;
-}
-
-Scene sceneOf(std::vector<SceneObject> objects, Vec3 gravity = Vec3(0, 0, -9.81)) {
-  Scene s;
-  s.name = "test";
-  s.gravity = gravity;
-  for (SceneObject& o : objects) {
-    o.index = static_cast<int>(s.objects.size());
-    s.god_triangles += o.god->triangleCount();
-    s.objects.push_back(std::move(o));
-  }
-  return s;
-}
+using testing::boxObject;
+using testing::sceneOf;
 
 Pose at(double x, double y, double z) { return Pose{Vec3(x, y, z), Quat::Identity()}; }
 

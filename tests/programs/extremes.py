@@ -6,10 +6,17 @@ lab feeds it. Every case must end with exit 0, every God-object pose finite (all
 solver failure, the injected bad samples counted, the hand started. Prints one table row per
 case ("extreme:" lines; the README's table).
 
+Scenes of many objects (issue 14, "model only what a scene requires"): 1,000 boxes 5 m away from
+the hand must give the reference case's result hash (they change nothing) and not one God-side
+query; of 1,000 dynamic boxes resting under and around the hand, every one the God side never
+queried must have gone to sleep in Bullet (awake in fewer frames than the run has).
+
 With --distributed LAUNCH_BIN DOMAIN, the cases that need no godhand-bench-only option also run
 through every service over Fast DDS in lock-step (godhand-launch --lockstep --check on its own
 domain): each must exit 0 with the in-process result_hash, penetration within the margin and no
-shared-memory segment left ("extreme-distributed:" lines).
+shared-memory segment left ("extreme-distributed:" lines, with what godhand-scene puts on the
+wire); a scene of more objects than the wire carries (10,001) is refused by godhand-scene at
+start-up in one line.
 
 usage: extremes.py BENCH_BIN [--distributed LAUNCH_BIN DOMAIN]"""
 import csv
@@ -23,7 +30,7 @@ import tempfile
 import time
 
 BENCH = sys.argv[1]
-WIRE_MAX_OBJECTS = 100  # idl/godhand.idl: SceneDescription and SceneState carry sequence<..., 100> objects
+WIRE_MAX_OBJECTS = 10000  # idl/godhand.idl: SceneDescription and SceneState carry sequence<..., 10000> objects
 LAUNCH, DOMAIN = (sys.argv[3], sys.argv[4]) if len(sys.argv) == 5 and sys.argv[2] == "--distributed" else (None, None)
 if len(sys.argv) not in (2, 5) or (len(sys.argv) == 5 and not LAUNCH):
     sys.exit("usage: extremes.py BENCH_BIN [--distributed LAUNCH_BIN DOMAIN]")
@@ -64,6 +71,9 @@ def press(x0=0.0, y0=0.0):
 
 
 TABLE = box("table", 0, 0, 0.085, 0.4, 0.4, 0.025)
+REFERENCE_CASE = "press, slide, lift (100 Hz, reference)"
+FAR_CASE = "1,000 objects 5 m away (the reference case's hand and table)"
+DYNAMIC_CASE = "1,000 dynamic objects (10 g boxes resting, then swept)"
 
 def scaled_model(factor):
     """deploy/models/hand16_right.pbtxt scaled by `factor`: every length (box half extents, capsule
@@ -85,7 +95,7 @@ def scaled_model(factor):
 
 CASES = [
     # name, recording, scene, extra bench args, what must be counted as rejected (substring)
-    ("press, slide, lift (100 Hz, reference)", script("reference", 100, press()), scene("table", [TABLE]), [], None),
+    (REFERENCE_CASE, script("reference", 100, press()), scene("table", [TABLE]), [], None),
     ("scene and hand 10 km from the origin", script("far", 100, press()),
      scene("far", [box("table", 10000.0, 0, 0.085, 0.4, 0.4, 0.025)]), ["--tracker-pose", "10000,0,0"], None),
     ("target teleported 3 m away and back, into the table", script("teleport", 100,
@@ -112,6 +122,15 @@ CASES = [
     ("1,000 objects", script("many", 100, "start right -0.3 -0.3 0.2\nmove right 1.0 0.3 0.3 0.12\nhold 0.1\n"),
      scene("many", [box(f"b{i}", -0.45 + 0.03 * (i % 32), -0.45 + 0.03 * (i // 32), 0.115, 0.006, 0.006, 0.006)
                     for i in range(1000)] + [TABLE]), [], None),
+    # The reference case with 1,000 boxes 5 m away (after the table: its index stays 0).
+    (FAR_CASE, script("reference", 100, press()),
+     scene("far_boxes", [TABLE] + [box(f"f{i}", 5.0 + 0.03 * (i % 32), 5.0 + 0.03 * (i // 32), 0.115, 0.006, 0.006, 0.006)
+                                   for i in range(1000)]), [], None),
+    # 1,000 light boxes resting on the table (10 g each, 12 mm apart): the hand waits 2.6 s above
+    # them (they settle and sleep), then sweeps through a corner of the grid.
+    (DYNAMIC_CASE, script("many_dynamic", 100, "start right -0.3 -0.3 0.2\nhold 2.6\nmove right 0.6 -0.1 -0.1 0.125\nhold 0.1\n"),
+     scene("many_dynamic", [TABLE] + [box(f"d{i}", -0.38 + 0.024 * (i % 32), -0.38 + 0.024 * (i // 32), 0.116, 0.006, 0.006, 0.006, 0.01)
+                                      for i in range(1000)]), [], None),
 ]
 
 
@@ -127,6 +146,7 @@ def finite_poses(path):
 
 
 rows, dist_rows = [], []
+hashes = {}
 for name, rec, scn, extra, counted in CASES:
     if LAUNCH and extra:
         continue  # a godhand-bench-only option: in-process only
@@ -161,6 +181,23 @@ for name, rec, scn, extra, counted in CASES:
         last = max(int(r["frame"]) for r in rows_p)
         low = min(float(r["pz"]) for r in rows_p if int(r["frame"]) == last)
         check(low > 0.11005, f"{name}: no tunnelling: the lowest God object ends at z {low:.5f} m, above the shell")
+    hashes[name] = j.get("result_hash")
+    objs = j.get("objects", [])
+    if name == FAR_CASE:
+        far = objs[1:]
+        check(j.get("result_hash") == hashes.get(REFERENCE_CASE),
+              f"{name}: the far boxes change nothing (hash {j.get('result_hash')} == reference {hashes.get(REFERENCE_CASE)})")
+        check(len(far) == 1000 and all(o["god_queries"] == 0 and o["god_us"] == 0.0 for o in far),
+              f"{name}: not one God-side query of a far box ({sum(o['god_queries'] for o in far)} queries)")
+    if name == DYNAMIC_CASE:
+        dyn = [o for o in objs if o["dynamic"]]
+        untouched = [o for o in dyn if o["god_queries"] == 0]
+        slept = [o for o in untouched if o["awake_frames"] < j["frames"]]
+        check(len(dyn) == 1000 and len(untouched) > 500 and len(slept) == len(untouched),
+              f"{name}: every box the God side never queried slept ({len(slept)} of {len(untouched)}; {len(dyn)} dynamic)")
+        print(f"extreme-figure: {name}: scene stage median {j['stages_us']['scene']:.0f} us; boxes awake at some frame "
+              f"{sum(1 for o in dyn if o['awake_frames'] > 0)}, queried by the God side {len(dyn) - len(untouched)}; "
+              f"awake object-frames {sum(o['awake_frames'] for o in dyn)} of {len(dyn) * j['frames']}", flush=True)
     rej = j.get("recording_rejections", "")
     if counted:
         check(counted in rej, f"{name}: the bad samples were counted ({rej})")
@@ -181,29 +218,46 @@ for name, rec, scn, extra, counted in CASES:
             code, tail = -1, "timed out after 300 s"
         lsecs = time.time() - t0
         d = json.load(open(report)) if os.path.exists(report) else {}
-        if open(scn).read().count("objects {") > WIRE_MAX_OBJECTS:
-            # More objects than SceneState carries: the scene service must refuse at start-up, in
-            # one line naming the limit (the in-process pipeline has no such limit).
-            log = os.path.join(TMP, "logs", "scene.log")
-            said = open(log).read() if os.path.exists(log) else ""
-            check(code != 0 and f"the wire carries at most {WIRE_MAX_OBJECTS}" in said,
-                  f"{name}: refused at start-up by the scene service, one line naming the wire's limit ({said.strip()[:120]})")
-            dist_rows.append((name, "0", "-", f"refused: the wire carries at most {WIRE_MAX_OBJECTS} objects", f"{lsecs:.1f} s"))
-            continue
         check(code == 0 and bool(d), f"{name}: distributed lock-step --check exit {code}{'' if code == 0 else ': ' + tail}")
         check(d.get("result_hash") == j.get("result_hash"),
               f"{name}: distributed result_hash {d.get('result_hash')} == in-process {j.get('result_hash')}")
         dpen = d.get("penetration_max_m", 1.0)
         check(dpen <= margin, f"{name}: distributed penetration {dpen * 1e3:.4f} mm within the margin")
         check(d.get("shm_segments_left", -1) == 0, f"{name}: no shared-memory segment left ({d.get('shm_segments_left')})")
+        log = os.path.join(TMP, "logs", "scene.log")
+        said = open(log).read() if os.path.exists(log) else ""
+        m = re.findall(r"SceneDescription (\d+) bytes \(once\), SceneState (\d+) bytes a frame", said)  # this run's: the last
+        wire = f"{int(m[-1][0]):,} / {int(m[-1][1]):,}" if m else "?"
         dist_rows.append((name, f"{d.get('frames', 0)}", f"{dpen * 1e3:.3f}",
-                          "same" if d.get("result_hash") == j.get("result_hash") else "DIFFERENT", f"{lsecs:.1f} s"))
+                          "same" if d.get("result_hash") == j.get("result_hash") else "DIFFERENT", wire, f"{lsecs:.1f} s"))
+
+if LAUNCH:
+    # More objects than the wire carries: godhand-scene refuses at start-up, one line naming the
+    # limit (the in-process pipeline has no such limit).
+    name = f"{WIRE_MAX_OBJECTS + 1:,} objects"
+    rec = script("reference", 100, press())
+    scn = scene("too_many", [TABLE] + [box(f"t{i}", 5.0 + 0.03 * (i % 100), 5.0 + 0.03 * (i // 100), 0.115, 0.006, 0.006, 0.006)
+                                       for i in range(WIRE_MAX_OBJECTS)])
+    lcmd = [LAUNCH, "--domain", DOMAIN, "--lockstep", "--recording", rec, "--scene", scn,
+            "--log-dir", os.path.join(TMP, "logs"), "--quiet", "--check"]
+    print("$ " + " ".join(lcmd), flush=True)
+    t0 = time.time()
+    try:
+        lr = subprocess.run(lcmd, capture_output=True, text=True, timeout=300)
+        code = lr.returncode
+    except subprocess.TimeoutExpired:
+        code = -1
+    log = os.path.join(TMP, "logs", "scene.log")
+    said = open(log).read() if os.path.exists(log) else ""
+    check(code != 0 and f"the wire carries at most {WIRE_MAX_OBJECTS}" in said,
+          f"{name}: refused at start-up by the scene service, one line naming the wire's limit ({said.strip()[:140]})")
+    dist_rows.append((name, "0", "-", f"refused: the wire carries at most {WIRE_MAX_OBJECTS:,} objects", "-", f"{time.time() - t0:.1f} s"))
 
 print("extreme: | case | frames | penetration mm | joint gap m | Hz median | counted | run |")
 for row in rows:
     print("extreme: | " + " | ".join(row) + " |")
 if LAUNCH:
-    print("extreme-distributed: | case | frames | penetration mm | result hash vs in-process | run |")
+    print("extreme-distributed: | case | frames | penetration mm | result hash vs in-process | on the wire: SceneDescription / SceneState bytes | run |")
     for row in dist_rows:
         print("extreme-distributed: | " + " | ".join(row) + " |")
 print("PASSED" if not failures else f"{len(failures)} check(s) FAILED")

@@ -180,6 +180,37 @@ TEST(Convert, ForcesAndSceneRoundTrip) {
   EXPECT_FALSE(svc::fromWire(ws, 1, &rs, &why));  // object index 1 out of range
 }
 
+// A scene at the wire's bound (10,000 dynamic objects, issue 14) goes through bit for bit; one
+// hostile object among them (an index out of range, a NaN or non-unit pose) makes the whole
+// sample a rejection with its reason, as with a small scene.
+TEST(Convert, SceneAtTheWireBoundRoundTripsAndHostileObjectsAreRejected) {
+  SceneSnapshot s;
+  s.frame = 4;
+  for (int i = 0; i < static_cast<int>(svc::kMaxSceneObjects); ++i)
+    s.objects.push_back(ObjectMotion{i, oddPose(i), Vec3(1e-3 * i, 0, 0), Vec3::Zero()});
+  msg::SceneState ws;
+  svc::toWire(s, &ws);
+  ASSERT_EQ(ws.objects().size(), svc::kMaxSceneObjects);
+  const int n = static_cast<int>(svc::kMaxSceneObjects);
+  SceneSnapshot rs;
+  std::string why;
+  ASSERT_TRUE(svc::fromWire(ws, n, &rs, &why)) << why;
+  ASSERT_EQ(rs.objects.size(), svc::kMaxSceneObjects);
+  EXPECT_TRUE(sameBits(rs.objects.back().X, s.objects.back().X) && sameBits(rs.objects.back().v, s.objects.back().v));
+  msg::SceneState bad = ws;
+  bad.objects().back().index(n);
+  EXPECT_FALSE(svc::fromWire(bad, n, &rs, &why));
+  EXPECT_NE(why.find("objects[9999]: index out of range"), std::string::npos) << why;
+  bad = ws;
+  bad.objects()[5000].pose().p()[1] = std::nan("");
+  EXPECT_FALSE(svc::fromWire(bad, n, &rs, &why));
+  EXPECT_NE(why.find("objects[5000]: pose not finite or not unit"), std::string::npos) << why;
+  bad = ws;
+  bad.objects()[7].pose().q()[0] = 2.0;
+  EXPECT_FALSE(svc::fromWire(bad, n, &rs, &why));
+  EXPECT_NE(why.find("objects[7]: pose not finite or not unit"), std::string::npos) << why;
+}
+
 // The services' data path without the network: every struct the stages exchange goes through
 // the wire types. Must equal the in-process Pipeline bit for bit on a real recording and scene.
 TEST(Convert, StagesThroughTheWireEqualThePipeline) {

@@ -472,6 +472,42 @@ TEST(SceneFile, AutoFidelityPicksTheCoarsestWithinTheTolerance) {
               "4: objects[0].god: ", "tolerance_mm applies to AUTO only");
 }
 
+// godhand-bench --god-fidelity over a scene file: every mesh object's God side is the one given
+// instead of the file's `god`; the reference (penetration) stays the full mesh, primitives keep
+// their tessellation, and AUTO gives the same choice as the file's own AUTO of that tolerance.
+TEST(SceneFile, GodFidelityGivenInsteadAppliesToMeshObjectsOnly) {
+  TempDir tmp;
+  const std::string fandisk = std::string(GODHAND_DEPLOY_DIR) + "/meshes/fandisk.obj";
+  const std::string text = "objects { id: \"fan\" mesh: \"" + fandisk + "\" size: 0.2 centre: true }\n"
+                           "objects { id: \"auto\" mesh: \"" + fandisk + "\" size: 0.2 centre: true god { fidelity: AUTO tolerance_mm: 5 } }\n"
+                           "objects { id: \"box\" box { half_extents { x: 0.1 y: 0.1 z: 0.1 } } }\n";
+  const std::string file = tmp.write("over.pbtxt", text);
+  const Scene plain = loadScene(file);
+  const GodFidelity hull = parseGodFidelity("hull"), auto5 = parseGodFidelity("auto:5");
+  const Scene hulls = loadScene(file, &hull), autos = loadScene(file, &auto5);
+  for (const char* id : {"fan", "auto"}) {
+    EXPECT_LT(byId(hulls, id).god->triangleCount(), byId(plain, "fan").god->triangleCount()) << id;
+    EXPECT_EQ(byId(hulls, id).god_skin, 0.0) << id << ": a hull encloses: no skin";
+    EXPECT_EQ(byId(hulls, id).reference->triangleCount(), byId(plain, "fan").reference->triangleCount()) << id;
+    EXPECT_EQ(byId(autos, id).god->triangleCount(), byId(plain, "auto").god->triangleCount()) << id;
+    EXPECT_EQ(byId(autos, id).god_skin, byId(plain, "auto").god_skin) << id;
+    EXPECT_EQ(byId(autos, id).god_note, byId(plain, "auto").god_note) << id;
+  }
+  EXPECT_EQ(byId(hulls, "box").god->triangleCount(), 12);
+  EXPECT_EQ(byId(autos, "box").god_skin, 0.0);
+  GodFidelity bad;
+  bad.kind = GodFidelity::Kind::Decimated;
+  bad.target_triangles = 2;
+  try {
+    loadScene(file, &bad);
+    ADD_FAILURE() << "a decimation to 2 triangles was accepted";
+  } catch (const SceneError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("objects[0].god: (the --god-fidelity given instead) decimation needs >= 4 triangles"), std::string::npos)
+        << what;
+  }
+}
+
 TEST(MeshScene, ParseMeshSpec) {
   EXPECT_EQ(parseMeshSpec("a.obj").path, "a.obj");
   EXPECT_EQ(parseMeshSpec("a.obj").size, 0.15);

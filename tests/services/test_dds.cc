@@ -150,6 +150,45 @@ std::string shmEntriesLeft(const std::set<std::string>& entries, Clock::duration
   return left;
 }
 
+// A scene at the wire's bound (idl/godhand.idl: 10,000 objects): every object's SceneState
+// (112 bytes each, 1.1 MB) and a SceneDescription with the longest id and mesh path (3.3 MB).
+constexpr std::size_t kWireObjects = 10000;
+msg::SceneState bigSceneState() {
+  msg::SceneState s;
+  s.step(7);
+  s.objects().resize(kWireObjects);
+  for (std::size_t i = 0; i < kWireObjects; ++i) {
+    s.objects()[i].index(static_cast<std::int32_t>(i));
+    s.objects()[i].pose() = pose(1.0 / static_cast<double>(i + 3));
+  }
+  return s;
+}
+void expectBigSceneState(const msg::SceneState& x) {
+  const msg::SceneState sent = bigSceneState();
+  ASSERT_EQ(x.objects().size(), kWireObjects);
+  for (std::size_t i = 0; i < kWireObjects; i += 997) {
+    EXPECT_EQ(x.objects()[i].index(), static_cast<std::int32_t>(i));
+    for (int k = 0; k < 3; ++k) EXPECT_TRUE(sameBits(x.objects()[i].pose().p()[k], sent.objects()[i].pose().p()[k]));
+  }
+  EXPECT_EQ(x.objects().back().index(), static_cast<std::int32_t>(kWireObjects - 1));
+}
+msg::SceneDescription bigSceneDescription() {
+  msg::SceneDescription d;
+  d.objects().resize(kWireObjects);
+  for (std::size_t i = 0; i < kWireObjects; ++i) {
+    msg::ObjectDescription& o = d.objects()[i];
+    o.index(static_cast<std::int32_t>(i));
+    o.id(std::string(64 - std::to_string(i).size(), 'i') + std::to_string(i));
+    o.mesh(std::string(160, 'm'));
+  }
+  return d;
+}
+void expectBigSceneDescription(const msg::SceneDescription& x) {
+  ASSERT_EQ(x.objects().size(), kWireObjects);
+  EXPECT_EQ(x.objects()[0].mesh().to_string(), std::string(160, 'm'));
+  EXPECT_EQ(x.objects().back().id().to_string(), std::string(60, 'i') + "9999");
+}
+
 // ---------------------------------------------------------------------------------------------
 // Child processes for the cross-process tests: the test binary runs itself again with
 // GODHAND_DDS_TEST_CHILD=<role>:<domain>; the role runs before gtest starts, then exits.
@@ -210,6 +249,13 @@ int runChild(const std::string& role, int domain) {
     if (!w.write(handState(1, 77, 16))) return 4;
     if (!waitFor([&] { return w.matched() > 0; }, deadline - Clock::now())) return 3;
     return waitFor([&] { return w.matched() == 0; }, deadline - Clock::now()) ? 0 : 3;
+  }
+  if (role == "scene-writer") {  // the scene at the wire's bound, transient local, for a late reader
+    dds::Writer<msg::SceneDescription> wd(p, dds::topic::kSceneDescription, dds::profile::kState);
+    dds::Writer<msg::SceneState> ws(p, dds::topic::kSceneState, dds::profile::kState);
+    if (!wd.write(bigSceneDescription()) || !ws.write(bigSceneState())) return 4;
+    if (!waitFor([&] { return wd.matched() > 0 && ws.matched() > 0; }, deadline - Clock::now())) return 3;
+    return waitFor([&] { return wd.matched() == 0 && ws.matched() == 0; }, deadline - Clock::now()) ? 0 : 3;
   }
   if (role == "status-reader") {
     dds::Reader<msg::ServiceStatus> r(p, dds::topic::kServiceStatus, dds::profile::kStatus);
@@ -367,12 +413,8 @@ TEST(DdsRoundTrip, EveryTopicTypeAtItsBoundsArrives) {
   forces.contacts().resize(320);
   forces.contacts()[319].lambda(-2.0);
   forces.god_bodies().resize(96);
-  msg::SceneState scene;
-  scene.objects().resize(100);
-  scene.objects()[99].index(99);
-  msg::SceneDescription description;
-  description.objects().resize(100);
-  description.objects()[0].mesh(std::string(160, 'm'));
+  msg::SceneState scene = bigSceneState();
+  msg::SceneDescription description = bigSceneDescription();
   msg::ServiceStatus status;
   status.service("solver/right");
   status.state("running");
@@ -411,14 +453,9 @@ TEST(DdsRoundTrip, EveryTopicTypeAtItsBoundsArrives) {
     EXPECT_EQ(x.contacts()[319].lambda(), -2.0);
     EXPECT_EQ(x.god_bodies().size(), 96u);
   });
-  roundTrip(scene, dds::topic::kSceneState, dds::profile::kState, [](const msg::SceneState& x) {
-    ASSERT_EQ(x.objects().size(), 100u);
-    EXPECT_EQ(x.objects()[99].index(), 99);
-  });
-  roundTrip(description, dds::topic::kSceneDescription, dds::profile::kState, [](const msg::SceneDescription& x) {
-    ASSERT_EQ(x.objects().size(), 100u);
-    EXPECT_EQ(x.objects()[0].mesh().to_string(), std::string(160, 'm'));
-  });
+  roundTrip(scene, dds::topic::kSceneState, dds::profile::kState, [](const msg::SceneState& x) { expectBigSceneState(x); });
+  roundTrip(description, dds::topic::kSceneDescription, dds::profile::kState,
+            [](const msg::SceneDescription& x) { expectBigSceneDescription(x); });
   roundTrip(status, dds::topic::kServiceStatus, dds::profile::kStatus, [](const msg::ServiceStatus& x) {
     EXPECT_EQ(x.service().to_string(), "solver/right");
     EXPECT_EQ(x.state().to_string(), "running");
@@ -740,6 +777,31 @@ TEST(DdsCrossProcess, HandStateFromAnotherProcessArrivesBitIdenticalAndItsShmIsR
   EXPECT_FALSE(child_shm.empty());
   const std::string left = shmEntriesLeft(child_shm, 2s);
   EXPECT_TRUE(left.empty()) << "left in /dev/shm by the child: " << left;
+}
+
+// Scenes of many objects through the distributed run (issue 14): a SceneDescription (3.3 MB) and
+// a SceneState (1.1 MB) at the wire's bound of 10,000 objects cross processes (RTPS fragments of
+// the shipped profile's transports) and reach a reader that joins after they were written.
+TEST(DdsCrossProcess, ASceneOfTenThousandObjectsCrossesProcesses) {
+  const pid_t child = spawnChild("scene-writer", 201);
+  ASSERT_GT(child, 0);
+  {
+    dds::Participant p(options(201, "test/parent"));
+    dds::Reader<msg::SceneDescription> rd(p, dds::topic::kSceneDescription, dds::profile::kState);
+    dds::Reader<msg::SceneState> rs(p, dds::topic::kSceneState, dds::profile::kState);
+    const Clock::time_point t0 = Clock::now();
+    std::vector<msg::SceneDescription> d;
+    std::vector<msg::SceneState> st;
+    const bool got_d = takeN(p, rd, 1, &d, kMatchDeadline + kDataDeadline);
+    const bool got_s = takeN(p, rs, 1, &st, kMatchDeadline + kDataDeadline);
+    std::printf("[figure] 10,000-object SceneDescription and SceneState from another process in %.2f s\n",
+                std::chrono::duration<double>(Clock::now() - t0).count());
+    ASSERT_TRUE(got_d) << "no SceneDescription from the child process";
+    ASSERT_TRUE(got_s) << "no SceneState from the child process";
+    expectBigSceneDescription(d[0]);
+    expectBigSceneState(st[0]);
+  }  // the readers leave: the child sees them unmatch, and exits
+  EXPECT_EQ(waitChild(child, kChildDeadline), 0);
 }
 
 TEST(DdsCrossProcess, ProfilesFileThatFastDdsLoadedItselfIsNotAClash) {
