@@ -56,7 +56,7 @@ std::vector<ObjectCost> Pipeline::godCosts() const {
       sum[o].queries += w.costs()[o].queries;
     }
   };
-  for (const auto& s : solvers_) add(s->collision());
+  for (const auto& s : solvers_) s->addCosts(&sum);
   add(resolver_->collision());
   return sum;
 }

@@ -219,7 +219,8 @@ std::string describe(const ObjectShares& s) {
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return s.objects[a].god_us > s.objects[b].god_us; });
   const double per_frame = s.frames > 0 ? 1.0 / static_cast<double>(s.frames) : 0.0;
   char buf[256];
-  std::string line = "God side by object (contacts, sweeps, distances; share of the frame time):";
+  std::string line = "God side by object (contacts, sweeps, distances, every thread's time summed; share of the frame "
+                     "time):";
   size_t named = 0;  // the costliest queried objects
   while (named < order.size() && named < kNamed && s.objects[order[named]].god_queries > 0) ++named;
   if (named == 0) {

@@ -131,6 +131,17 @@ void HandSolver::forEachBody(const F& f, int busy) {
   workers_->runSlots(n, job);
 }
 
+void HandSolver::addCosts(std::vector<ObjectCost>* sum) const {
+  auto add = [sum](const CollisionWorld& w) {
+    for (size_t o = 0; o < sum->size() && o < w.costs().size(); ++o) {
+      (*sum)[o].us += w.costs()[o].us;
+      (*sum)[o].queries += w.costs()[o].queries;
+    }
+  };
+  add(collision_);
+  for (const auto& w : slot_worlds_) add(*w);
+}
+
 void HandSolver::setScene(const SceneSnapshot& snapshot) {
   applySnapshot(collision_, snapshot);
   for (auto& w : slot_worlds_) applySnapshot(*w, snapshot);

@@ -259,6 +259,9 @@ class HandSolver {
   const std::vector<Contact>& contacts() const { return contacts_; }
   const SolverCounters& counters() const { return counters_; }
   const CollisionWorld& collision() const { return collision_; }
+  /// Adds every object's God-side cost (CollisionWorld::costs) of this solver's collision worlds
+  /// (the caller's and each body thread's) to `sum` (one entry per scene object).
+  void addCosts(std::vector<ObjectCost>* sum) const;
 
  private:
   void countSweep(const geo::SweepResult& s) {
