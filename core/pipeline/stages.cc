@@ -275,17 +275,21 @@ bool HandSolver::clearOf(size_t b, const Pose& X_a, const Pose& X_b, double room
   return clear_reach_[b] - moved > room;
 }
 
-double HandSolver::sweepLastMotion(bool* started_inside) {
-  const std::vector<Pose>& X0 = stepper_->previousPoses();
-  const std::vector<Pose>& X1 = stepper_->poses();
+void HandSolver::sweepBodies(const std::vector<Pose>& X_from, const std::vector<Pose>& X_to) {
   int busy = 0;
   for (size_t b = 0; b < model_.bodies.size(); ++b) {
-    certified_[b] = clearOf(b, X0[b], X1[b], sweepRoom()) ? 1 : 0;
+    certified_[b] = clearOf(b, X_from[b], X_to[b], sweepRoom()) ? 1 : 0;
     busy += 1 - certified_[b];
   }
   forEachBody([&](size_t b, CollisionWorld& world) {
-    body_sweeps_[b] = certified_[b] ? geo::SweepResult{} : world.sweep(model_.bodies[b].shape, X0[b], X1[b], params_.sweep);
+    body_sweeps_[b] = certified_[b] ? geo::SweepResult{} : world.sweep(model_.bodies[b].shape, X_from[b], X_to[b], params_.sweep);
   }, busy);
+}
+
+double HandSolver::sweepLastMotion(bool* started_inside) {
+  const std::vector<Pose>& X0 = stepper_->previousPoses();
+  const std::vector<Pose>& X1 = stepper_->poses();
+  sweepBodies(X0, X1);
   double toc = 1.0;
   for (size_t b = 0; b < model_.bodies.size(); ++b) {
     const geo::SweepResult& s = body_sweeps_[b];
@@ -343,14 +347,7 @@ JointErrors HandSolver::clip(double toc_min) {
   };
   // Every body's re-closing motion at once (body_sweeps_), counted in body order.
   auto sweepReclose = [&](const std::vector<Pose>& X) {
-    int busy = 0;
-    for (size_t b = 0; b < n; ++b) {
-      certified_[b] = clearOf(b, X_clip_[b], X[b], sweepRoom()) ? 1 : 0;
-      busy += 1 - certified_[b];
-    }
-    forEachBody([&](size_t b, CollisionWorld& world) {
-      body_sweeps_[b] = certified_[b] ? geo::SweepResult{} : world.sweep(model_.bodies[b].shape, X_clip_[b], X[b], params_.sweep);
-    }, busy);
+    sweepBodies(X_clip_, X);
     for (size_t b = 0; b < n; ++b) countSweep(body_sweeps_[b]);
   };
   auto reclose = [&]() {

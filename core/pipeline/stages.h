@@ -281,6 +281,9 @@ class HandSolver {
   /// The nearest free rigid translation of the poses X (shift; zero when X is free already).
   bool freeStart(std::vector<Pose>* X, Vec3* shift) const;
   void generateContacts(const HandInput& in);
+  /// Every body's motion X_from -> X_to swept (or certified free by clearOf) into body_sweeps_,
+  /// spread over the body threads; not counted.
+  void sweepBodies(const std::vector<Pose>& X_from, const std::vector<Pose>& X_to);
   /// TOC_min of the stepper's last motion (previous -> current poses) against the scene; each
   /// body's own TOC in body_toc_.
   double sweepLastMotion(bool* started_inside);
