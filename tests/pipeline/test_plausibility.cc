@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -14,6 +16,7 @@
 #include "geometry/bvh.h"
 #include "leap/leap_recording.h"
 #include "leap/retarget.h"
+#include "pipeline/collision_world.h"
 #include "pipeline/pipeline.h"
 #include "pipeline/run_metrics.h"
 #include "scene/mesh_io.h"
@@ -285,6 +288,60 @@ TEST(Plausibility, APhalanxOnACreaseDoesNotHoldTheHandStill) {
   EXPECT_LT(god_off, 1e-3) << "without the cap the hand is held (the case this test is about)";
   EXPECT_GT(god_on, 0.01) << "with the cap the hand moves on";
   EXPECT_LE(pen_on, PipelineParams{}.step.rows.margin);
+}
+
+// A hand whose targets sit deep in a mesh starts just above the mesh, not up to twice as high:
+// where moving out along the exit normals does not settle, the start is lifted straight up to the
+// lowest free height (found to 1 mm between the last occupied and the first free doubling step).
+// Real data: the bundled two-hand recording's right hand starts inside the default scene's bunny
+// (lifted 16 cm before, 9.5 cm now). Oracle: the scene's own distances at the reported lift and
+// 2 mm below it (the trace line says where the start went).
+TEST(Plausibility, AHandStartingInsideAMeshStartsJustAboveIt) {
+  const leap::Recording rec = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/confidence2-49fps.json");
+  const HandModel hand = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  const Scene scene = loadScene(std::string(GODHAND_DEPLOY_DIR) + "/scenes/default.pbtxt");
+  leap::Retargeter rt(hand);
+  PipelineParams p;
+  p.step.dt = 1.0 / rec.meanFrameRate();
+  p.simulate = false;
+  p.trace = 1;
+  Vec3 shift = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+  p.trace_sink = [&](const char* line) {
+    double x, y, z;
+    if (std::sscanf(line, "trace: start moved by (%lf, %lf, %lf)", &x, &y, &z) == 3) shift = Vec3(x, y, z);
+  };
+  Pipeline pipe(scene, {&hand}, p);
+  std::vector<Pose> targets;
+  std::vector<unsigned char> has;
+  for (size_t k = 0; k < rec.frames().size() && !(shift.allFinite()); ++k)
+    for (const leap::TrackedHand& h : rec.frames()[k].hands)
+      if (h.right) {
+        rt.targets(h, &targets, &has);
+        pipe.step({HandInput{true, targets.data(), has.data()}});
+        break;
+      }
+  ASSERT_TRUE(shift.allFinite()) << "the right hand's start was not lifted: the test shows nothing";
+  EXPECT_EQ(shift.x(), 0.0);
+  EXPECT_EQ(shift.y(), 0.0);
+  // Distances of the start pose lifted by h: the least over bodies and objects.
+  CollisionWorld world(scene);
+  auto clearance = [&](double h) {
+    double least = std::numeric_limits<double>::infinity();
+    for (size_t b = 0; b < hand.bodies.size(); ++b) {
+      const bool driven = has.empty() || has[b];
+      if (!driven) continue;
+      Pose X = targets[b];
+      X.p.z() += h;
+      least = std::min(least, world.clearance(hand.bodies[b].shape, X, 0.05));
+    }
+    return least;
+  };
+  const double at_start = clearance(shift.z()), below = clearance(shift.z() - 0.002);
+  std::printf("[figure] right hand lifted %.4f m to start; clearance there %.2e m, 2 mm lower %.2e m\n", shift.z(), at_start,
+              below);
+  EXPECT_GE(at_start, p.start_clearance - 1e-9) << "the start is not free";
+  EXPECT_LT(below, p.start_clearance) << "2 mm lower was free too: the start is higher than it need be";
+  EXPECT_LT(shift.z(), 0.12);
 }
 
 // The excess lag of METHOD.md §5 on an analytic case: a sphere whose target sinks d into a plane
