@@ -16,7 +16,8 @@
 //            rate and the services' run passes its --check
 //   measure  (figures, not a pass/fail test) services' latency with 0 and 5 browsers, the
 //            viewer's added latency and CPU, each page's CPU and frame rate, the whole
-//            browser's CPU (BROWSER_NICE=19: the browsers at niceness 19; RUNS, PAGES, WEB_ROOT)
+//            browser's CPU (BROWSER_NICE=19: the browsers at niceness 19; BROWSER_SCHED=idle:
+//            under SCHED_IDLE; RUNS, PAGES, WEB_ROOT, PAGE_QUERY)
 //   cost     (figures) what one page (PAGES) costs live and with nothing arriving
 import { spawn, spawnSync } from 'node:child_process';
 import fs from 'node:fs';
@@ -120,12 +121,15 @@ async function openBrowser() {
   // playwright gives every launch a fresh, temporary --user-data-dir of its own. BROWSER_NICE=N
   // (measure): the browser and everything it starts run at that niceness, as browsers a lab
   // runs on the services' own machine should (the services keep their share of the cores).
+  // BROWSER_SCHED=idle: under the SCHED_IDLE policy (chrt --idle), which any other task preempts.
   let exe = CHROMIUM;
-  if (process.env.BROWSER_NICE) {
-    const nice = Number(process.env.BROWSER_NICE);
+  if (process.env.BROWSER_NICE || process.env.BROWSER_SCHED) {
+    const nice = Number(process.env.BROWSER_NICE || 0);
     if (!(Number.isInteger(nice) && nice >= 0 && nice <= 19)) { console.log('BROWSER_NICE must be an integer in 0..19'); process.exit(2); }
+    if (![undefined, 'idle'].includes(process.env.BROWSER_SCHED)) { console.log('BROWSER_SCHED must be idle'); process.exit(2); }
+    const idle = process.env.BROWSER_SCHED === 'idle' ? 'chrt --idle 0 ' : '';
     exe = path.join(TMP, 'chromium-nice');
-    fs.writeFileSync(exe, `#!/bin/sh\nexec nice -n ${nice} ${CHROMIUM} "$@"\n`, { mode: 0o755 });
+    fs.writeFileSync(exe, `#!/bin/sh\nexec ${idle}nice -n ${nice} ${CHROMIUM} "$@"\n`, { mode: 0o755 });
   }
   browser = await chromium.launch({ executablePath: exe, args: FLAGS, headless: true, timeout: 60000 });
   return browser;
@@ -711,8 +715,9 @@ async function rawReader(port) {
 }
 
 // The browser's CPU: every chromium process under this test (browser, GPU process, where
-// software WebGL draws, renderers, utilities), utime + stime in seconds.
-function browserCpuSeconds() {
+// software WebGL draws, renderers, utilities): pid -> utime + stime in seconds. cpuSince(a, b):
+// what the processes alive at b spent since a (a renderer closed in between takes its time along).
+function browserCpu() {
   const parent = new Map(), comm = new Map();
   for (const d of fs.readdirSync('/proc')) {
     if (!/^\d+$/.test(d)) continue;
@@ -723,10 +728,11 @@ function browserCpuSeconds() {
     } catch { /* gone */ }
   }
   const under = (pid) => { for (let p = parent.get(pid); p; p = parent.get(p)) if (p === process.pid) return true; return false; };
-  let sum = 0;
-  for (const [pid, c] of comm) if (/chrom/i.test(c) && under(pid)) sum += cpuSeconds(pid) || 0;
-  return sum;
+  const out = new Map();
+  for (const [pid, c] of comm) if (/chrom/i.test(c) && under(pid)) out.set(pid, cpuSeconds(pid) || 0);
+  return out;
 }
+const cpuSince = (a, b) => [...b].reduce((s, [pid, x]) => s + x - (a.get(pid) || 0), 0);
 // Per thread of every chromium process under this test: 'type:thread' -> CPU seconds.
 function browserThreads() {
   const out = new Map();
@@ -788,19 +794,20 @@ async function caseMeasure() {
   await openBrowser();
   const results = { 0: [], [npages]: [] };
   let pages = [];
-  console.log(`load before: ${os.loadavg().map((x) => x.toFixed(2)).join(' ')}`);
+  console.log(`load before: ${os.loadavg().map((x) => x.toFixed(2)).join(' ')}; browsers: nice ${process.env.BROWSER_NICE || 0}` +
+    `${process.env.BROWSER_SCHED ? ', SCHED_' + process.env.BROWSER_SCHED.toUpperCase() : ''}; page ${process.env.PAGE_QUERY || '(defaults)'}`);
   for (let i = 0; i < runs; i++) {
     for (const n of [0, npages]) {
-      while (pages.length < n) { pages.push(await openPage(v.url, { width: 800, height: 600 })); }
+      while (pages.length < n) { pages.push(await openPage(v.url + (process.env.PAGE_QUERY || ''), { width: 800, height: 600 })); }
       while (pages.length > n) await pages.pop().close();
       for (const p of pages) await p.waitForFunction(() => window.godhand && window.godhand.connected, null, { timeout: 20000 });
       for (const p of pages) await p.evaluate(() => { window.godhand.latenciesMs.length = 0; window.godhand.endToEndMs.length = 0; window.godhand.arrivalMs.length = 0; });
       const meters = [];
       for (const p of pages) meters.push(await pageMeter(p));
-      const cpu0 = cpuSeconds(v.proc.pid), b0 = browserCpuSeconds(), t0 = Date.now();
+      const cpu0 = cpuSeconds(v.proc.pid), b0 = browserCpu(), t0 = Date.now();
       const r = await launch(['--recording', REC2]).done;
       const dt = (Date.now() - t0) / 1000;
-      const cpu = (cpuSeconds(v.proc.pid) - cpu0) / dt, bcpu = (browserCpuSeconds() - b0) / dt;
+      const cpu = (cpuSeconds(v.proc.pid) - cpu0) / dt, bcpu = cpuSince(b0, browserCpu()) / dt;
       const per = [];
       for (const m of meters) per.push(await m.take());
       const lat = r.json.latency_us || {};
@@ -844,9 +851,9 @@ async function caseCost() {
     const meters = [];
     for (const p of pages) meters.push(await pageMeter(p));
     const th0 = browserThreads();
-    const b0 = browserCpuSeconds(), t0 = Date.now(), s0 = await pages[0].evaluate(() => window.godhand.received.hand_state);
+    const b0 = browserCpu(), t0 = Date.now(), s0 = await pages[0].evaluate(() => window.godhand.received.hand_state);
     await sleep(ms);
-    const dt = (Date.now() - t0) / 1000, bcpu = (browserCpuSeconds() - b0) / dt;
+    const dt = (Date.now() - t0) / 1000, bcpu = cpuSince(b0, browserCpu()) / dt;
     const th = [...browserThreads()].map(([k, x]) => [k, (x - (th0.get(k) || 0)) / dt]).filter(([, x]) => x > 0.005).sort((a, b) => b[1] - a[1]);
     console.log('threads: ' + th.map(([k, x]) => `${k} ${pctOf(x)}`).join(', '));
     const states = ((await pages[0].evaluate(() => window.godhand.received.hand_state)) - s0) / dt;
