@@ -6,7 +6,8 @@
 // usage: node browser_test.mjs CASE BIN_DIR DEPLOY_DIR WEB_DIR DOMAIN
 // cases: live | poses | offline | abuse | synthetic | screenshot | measure | cost
 //   live     two live hands: connected, frames at the live rate, both hands drawn, a screenshot
-//            with the God and ghost colours, stale marks while the scene service is killed, recovery
+//            with the God and ghost colours, stale marks while the scene service is killed, recovery;
+//            drawn on demand (at most the frame-rate cap, nothing once nothing arrives, a drag draws)
 //   poses    lock-step run: every God-body pose the page drew equals godhand-bench's --poses row
 //            of that frame (the in-process run, bit-identical to the lock-step distributed one)
 //   offline  godhand-viewer --poses on a bench CSV (with target columns added): timeline frames,
@@ -299,6 +300,26 @@ async function caseLive() {
   check(lat.length > 50, `viewer -> drawn latency over ${lat.length} states: median ${median(lat).toFixed(1)} ms, p99 ${pct(lat, 0.99).toFixed(1)} ms`);
   console.log(`figure: HandState taken by the viewer -> in the page (before drawing) median ${median(fin.arr).toFixed(2)} ms, p99 ${pct(fin.arr, 0.99).toFixed(2)} ms`);
   console.log(`figure: tracker sample -> drawn median ${median(fin.e2e).toFixed(1)} ms, p99 ${pct(fin.e2e, 0.99).toFixed(1)} ms`);
+  // Drawing on demand: never more than the page's frame-rate cap in any second of the run;
+  // nothing drawn once nothing arrives; a drag of the camera draws.
+  const cap = await page.evaluate(() => window.godhand.maxFps);
+  let fastest = 0;
+  for (const x of samples) {
+    const y = samples.find((z) => z.t >= x.t + 1000);
+    if (y) fastest = Math.max(fastest, (y.renders - x.renders) / ((y.t - x.t) / 1000));
+  }
+  check(cap === 30 && fastest > 5 && fastest <= 1.1 * cap, `frames drawn per second at most ${fastest.toFixed(1)} (cap ${cap})`);
+  await sleep(1000);
+  const still0 = await page.evaluate(() => window.godhand.renders);
+  await sleep(2000);
+  const still1 = await page.evaluate(() => window.godhand.renders);
+  check(still1 === still0, `with nothing arriving, nothing drawn (${still1 - still0} frames in 2 s)`);
+  await page.mouse.move(600, 400);
+  await page.mouse.down();
+  await page.mouse.move(660, 430, { steps: 4 });
+  await page.mouse.up();
+  const dragged = await page.waitForFunction((n) => window.godhand.renders > n, still1, { timeout: 5000 }).then(() => true, () => false);
+  check(dragged, 'a camera drag draws');
   check(page.errors.length === 0, `no page errors (${page.errors.slice(0, 3).join(' | ')})`);
   await browser.close();
   const vr = await stop(v.proc);
@@ -664,12 +685,13 @@ async function caseSynthetic() {
 }
 
 // The README's picture: the live page on the bundled two-hand recording, taken when both hands
-// are fresh and in contact (OUT=file.png; not a test).
+// are fresh and in contact, drawn as on a GPU (antialiased, full resolution and detail;
+// OUT=file.png; not a test).
 async function caseScreenshot() {
   const out = process.env.OUT || path.join(TMP, 'viewer.png');
   const v = await startViewer(['--domain', DOMAIN]);
   await openBrowser();
-  const page = await openPage(v.url + '?aa=1&scale=1', { width: 1280, height: 760 });
+  const page = await openPage(v.url + '?aa=1&scale=1&detail=full', { width: 1280, height: 760 });
   await page.waitForFunction(() => window.godhand && window.godhand.connected, null, { timeout: 20000 });
   const l = launch(['--recording', REC2, '--speed', '0.25']);
   let best = -1;
@@ -835,8 +857,9 @@ async function caseMeasure() {
 }
 
 // What a page costs (figures, not a pass/fail test): PAGES (1) pages on a live replay at --speed
-// 0.25 (the recording's 48.5 Hz hands at 12 Hz for ~15 s), 8 s measured in its middle, then 5 s
-// with nothing arriving. WEB_ROOT=DIR: another build of the page.
+// SPEED (0.25: the recording's 48.5 Hz hands at 12 Hz for ~15 s), WINDOW_MS (8000) measured in
+// its middle, then 5 s with nothing arriving; CPU per thread. WEB_ROOT=DIR: another build of the
+// page; PAGE_QUERY, VIEWER_ARGS.
 async function caseCost() {
   const npages = Number(process.env.PAGES || 1), speed = process.env.SPEED || '0.25';
   const v = await startViewer(['--domain', DOMAIN, ...(process.env.WEB_ROOT ? ['--web-root', process.env.WEB_ROOT] : []), ...(process.env.VIEWER_ARGS ? process.env.VIEWER_ARGS.split(' ') : [])]);
@@ -861,7 +884,7 @@ async function caseCost() {
     for (const m of meters) per.push(await m.take());
     return { per, bcpu, states };
   };
-  const live = await measure(8000);
+  const live = await measure(Number(process.env.WINDOW_MS || 8000));
   console.log(`figure: live (${live.states.toFixed(1)} HandStates/s): ${pagesFigure(live.per, live.bcpu)}`);
   console.log(`renderer: ${await pages[0].evaluate(() => { const gl = document.querySelector('#view canvas').getContext('webgl2'); const e = gl.getExtension('WEBGL_debug_renderer_info'); return e ? gl.getParameter(e.UNMASKED_RENDERER_WEBGL) : '?'; })}`);
   const c = live.per[0];
