@@ -4,6 +4,7 @@
 // with the scene's meshes served over HTTP on the same port. Offline (--poses): serves a
 // godhand-bench --poses CSV and its scene, no DDS. Wiring only: the rules live in feed.cc,
 // encode.cc, offline.cc and server.cc.
+#include <algorithm>
 #include <cstdio>
 #include <future>
 #include <memory>
@@ -39,12 +40,16 @@ constexpr const char* kSynopsis =
 
 std::shared_ptr<const std::string> shared(std::string s) { return std::make_shared<const std::string>(std::move(s)); }
 
-// The meshes of a scene as HTTP routes /mesh/GEN/INDEX.bin.
+// The meshes of a scene as HTTP routes /mesh/GEN/INDEX.bin (about max_triangles each) and
+// /mesh/GEN/INDEX.light.bin (a quarter of that: what a page drawing in software fetches).
 void serveMeshes(Server& server, const Scene& scene, const std::string& gen, int max_triangles) {
   geo::TriangleMesh m;
-  for (int i = 0; i < static_cast<int>(scene.objects.size()); ++i)
-    if (displayMesh(scene, i, max_triangles, &m))
-      server.setRoute("/mesh/" + gen + "/" + std::to_string(i) + ".bin", "application/octet-stream", shared(meshBinary(m)));
+  for (int i = 0; i < static_cast<int>(scene.objects.size()); ++i) {
+    const std::string route = "/mesh/" + gen + "/" + std::to_string(i);
+    if (displayMesh(scene, i, max_triangles, &m)) server.setRoute(route + ".bin", "application/octet-stream", shared(meshBinary(m)));
+    if (displayMesh(scene, i, std::max(4, max_triangles / 4), &m))
+      server.setRoute(route + ".light.bin", "application/octet-stream", shared(meshBinary(m)));
+  }
 }
 
 struct LoadedScene {
@@ -72,7 +77,7 @@ int main(int argc, char** argv) {
   cli.option("--port", &port, "PORT", "TCP port; 0 = a free one (printed)");
   cli.option("--web-root", &web_root, "DIR", "the built page (index.html, viewer.js)");
   cli.option("--max-queue-mb", &max_queue_mb, "MB", "per browser: bytes queued beyond this are dropped (counted)");
-  cli.option("--display-triangles", &display_triangles, "N", "the page draws each object decimated to about N triangles (collisions use the full mesh)");
+  cli.option("--display-triangles", &display_triangles, "N", "the page draws each object decimated to about N triangles (collisions use the full mesh); a page drawing in software a quarter of that");
   cli.option("--poses", &poses, "FILE", "offline: a godhand-bench --poses CSV to play (no DDS)");
   cli.option("--scene", &scene_file, "FILE", "offline: the scene file the bench ran on (default: the lab's)");
   cli.multi("--mesh", &meshes, "FILE[:SIZE_M][@X,Y,Z]", "offline: the bench's ad-hoc mesh scene (needs --recording)");

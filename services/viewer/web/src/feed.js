@@ -1,6 +1,8 @@
 // A minimal Foxglove WebSocket protocol client (subprotocol foxglove.websocket.v1, JSON channels):
 // subscribes to every advertised channel and hands each message to onMessage(topic, object, timeNs).
 // Can advertise one client channel and publish JSON on it (clientPublish capability).
+const decoder = new TextDecoder();
+
 export class Feed {
   constructor(url, { onMessage, onOpen, onClose, onStatus }) {
     this.url = url;
@@ -54,7 +56,7 @@ export class Feed {
     if (!topic) return;
     this.received++;
     this.bytes += view.byteLength;
-    const text = new TextDecoder().decode(new Uint8Array(data, 13));
+    const text = decoder.decode(new Uint8Array(data, 13));
     this.onMessage(topic, JSON.parse(text), timeNs);
   }
 

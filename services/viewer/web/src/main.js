@@ -2,6 +2,12 @@
 // hand solid and its targets as a translucent ghost, contact points and force arrows, stale / held
 // marks, live figures and a per-stage time chart; live over the Foxglove WebSocket feed or offline
 // from a godhand-bench --poses file (timeline). window.godhand exposes what was drawn (for tests).
+//
+// Cost: a frame is drawn only when something changed (a state arrived, the camera moved, the
+// window resized, a mesh loaded, the timeline played), at most ?fps= times a second (30), and
+// never while the tab is hidden; the figures and the chart are redrawn twice a second. URL
+// parameters: fps (frame-rate cap), scale (pixel ratio), aa (0/1: antialiasing), detail
+// (full/light: the bodies' tessellation and the scene meshes; light where WebGL is software).
 import * as THREE from 'three';
 import { OrbitControls } from 'three/examples/jsm/controls/OrbitControls.js';
 import { Feed } from './feed.js';
@@ -13,6 +19,7 @@ const GHOST_COLOURS = [0xff8a1e, 0xff4fb0, 0xffd21e];
 const STALE_COLOUR = 0xd23c3c;
 
 const view = document.getElementById('view');
+const params = new URLSearchParams(location.search);
 // Software WebGL (SwiftShader, llvmpipe: headless Chromium, machines without a GPU) draws about
 // twice as fast without multisampling; ?aa=0 / ?aa=1 overrides.
 function softwareGl() {
@@ -20,16 +27,68 @@ function softwareGl() {
     const gl = document.createElement('canvas').getContext('webgl2');
     const ext = gl && gl.getExtension('WEBGL_debug_renderer_info');
     const name = ext ? gl.getParameter(ext.UNMASKED_RENDERER_WEBGL) : '';
+    const lose = gl && gl.getExtension('WEBGL_lose_context');
+    if (lose) lose.loseContext();  // the probe's context is not kept
     return /swiftshader|llvmpipe|software/i.test(name);
   } catch { return false; }
 }
-const aaParam = new URLSearchParams(location.search).get('aa');
-const renderer = new THREE.WebGLRenderer({ antialias: aaParam === null ? !softwareGl() : aaParam === '1', preserveDrawingBuffer: true });
-// Software WebGL is fill-rate bound: draw at 0.6 of the CSS resolution there (?scale=1 overrides).
-const scaleParam = Number(new URLSearchParams(location.search).get('scale'));
-renderer.setPixelRatio(scaleParam > 0 ? scaleParam : softwareGl() ? 0.6 : (window.devicePixelRatio || 1));
+const SOFTWARE_GL = softwareGl();
+const aaParam = params.get('aa');
+const renderer = new THREE.WebGLRenderer({ antialias: aaParam === null ? !SOFTWARE_GL : aaParam === '1', powerPreference: 'low-power' });
+// Software WebGL pays for every pixel: draw at 0.6 of the CSS resolution there; a GPU at the
+// screen's pixel ratio up to 1.5 (?scale= overrides either).
+const scaleParam = Number(params.get('scale'));
+renderer.setPixelRatio(scaleParam > 0 ? scaleParam : SOFTWARE_GL ? 0.6 : Math.min(1.5, window.devicePixelRatio || 1));
+const fpsParam = Number(params.get('fps'));
+const MAX_FPS = fpsParam > 0 ? Math.min(fpsParam, 240) : 30;
+// ...and about half a microsecond on every triangle, however small on screen (headless Chromium's
+// SwiftShader, 800x600: two hands' 32 God capsules took 8.8 ms a frame at 600 triangles each,
+// 4.1 ms at 208; the default scene's 48k triangles 25 ms, 14k 11 ms). There the bodies are
+// tessellated more coarsely and the scene's meshes are the viewer's light ones (a quarter of the
+// triangles); ?detail=full / ?detail=light overrides.
+const detailParam = params.get('detail');
+const LIGHT = detailParam ? detailParam === 'light' : SOFTWARE_GL;
+const CAPSULE_SEGMENTS = LIGHT ? [3, 8] : [6, 12], SPHERE_SEGMENTS = LIGHT ? [10, 8] : [16, 12];
 renderer.setSize(view.clientWidth, view.clientHeight);
 view.appendChild(renderer.domElement);
+function timed(what, f) {
+  const t = performance.now();
+  f();
+  godhand.cost[what] += performance.now() - t;
+}
+
+// ---------- drawing on demand ----------
+// requestRender() asks for a frame: drawn at the next animation frame at most MAX_FPS times a
+// second, so every change is drawn (the newest state of a burst, never an older one) while a
+// burst of them costs one frame. Hidden tabs run no animation frames: nothing is drawn there
+// until the tab shows again. Nothing changes, nothing is drawn.
+let renderWanted = false, renderQueued = false, lastDrawAt = -Infinity;
+const DRAW_GAP_MS = 1000 / MAX_FPS;
+function requestRender() {
+  renderWanted = true;
+  if (!renderQueued) { renderQueued = true; requestAnimationFrame(drawFrame); }
+}
+function drawFrame(t) {
+  renderQueued = false;
+  if (!renderWanted) return;
+  // Early by less than a quarter of a 60 Hz display's frame counts as on time (a 30 fps cap there
+  // draws every second frame); a long wait sleeps in a timer, not in empty animation frames.
+  const wait = DRAW_GAP_MS - (t - lastDrawAt);
+  if (wait > 4) {
+    renderQueued = true;
+    if (wait > 24) setTimeout(() => requestAnimationFrame(drawFrame), wait - 17);
+    else requestAnimationFrame(drawFrame);
+    return;
+  }
+  renderWanted = false;
+  lastDrawAt = t;
+  if (offline && offline.playing) { offline.advance(t); requestRender(); }
+  timed('draw', () => renderer.render(scene, camera));
+  godhand.renders++;
+  renderRate.tick();
+  recordDrawn();
+}
+
 const scene = new THREE.Scene();
 scene.background = new THREE.Color(0x202226);
 const camera = new THREE.PerspectiveCamera(45, view.clientWidth / view.clientHeight, 0.005, 50);
@@ -38,6 +97,7 @@ camera.position.set(0.55, -0.65, 0.55);
 const controls = new OrbitControls(camera, renderer.domElement);
 controls.target.set(0, 0, 0.1);
 controls.update();
+controls.addEventListener('change', () => requestRender());
 scene.add(new THREE.HemisphereLight(0xffffff, 0x404048, 1.6));
 const sun = new THREE.DirectionalLight(0xffffff, 1.6);
 sun.position.set(0.5, -0.8, 1.5);
@@ -54,6 +114,7 @@ function fitView() {
   camera.setViewOffset(w, h, -shift, 0, w, h);
   camera.updateProjectionMatrix();
   renderer.setSize(w, h);
+  requestRender();
 }
 window.addEventListener('resize', fitView);
 fitView();
@@ -90,7 +151,7 @@ async function loadScene(desc) {
       holder.add(new THREE.Mesh(new THREE.BoxGeometry(0.05, 0.05, 0.05), o.dynamic ? dynamicMat : staticMat));
       continue;
     }
-    fetch(`mesh/${desc.generation}/${o.index}.bin`).then((r) => (r.ok ? r.arrayBuffer() : null)).then((buf) => {
+    fetch(`mesh/${desc.generation}/${o.index}${LIGHT ? '.light' : ''}.bin`).then((r) => (r.ok ? r.arrayBuffer() : null)).then((buf) => {
       if (!buf || sceneObjects.get(o.index) !== holder) return;
       const dv = new DataView(buf);
       if (dv.getUint32(0, true) !== 0x314d4847) return;  // "GHM1"
@@ -102,6 +163,7 @@ async function loadScene(desc) {
       holder.add(new THREE.Mesh(g, o.dynamic ? dynamicMat : staticMat));
       godhand.scene.meshes++;
       godhand.scene.triangles += nt;
+      requestRender();
     });
   }
 }
@@ -121,16 +183,18 @@ function bodyGeometry(shape) {
   if (g) return g;
   const [type, r, hl, hx, hy, hz] = shape;
   if (type === 0) {
-    g = new THREE.CapsuleGeometry(Math.max(r, 1e-4), Math.max(2 * hl, 1e-6), 6, 12);
+    g = new THREE.CapsuleGeometry(Math.max(r, 1e-4), Math.max(2 * hl, 1e-6), ...CAPSULE_SEGMENTS);
     g.rotateX(Math.PI / 2);  // three's capsule runs along y; the body's along z
   } else if (type === 1) {
-    g = new THREE.SphereGeometry(Math.max(r, 1e-4), 16, 12);
+    g = new THREE.SphereGeometry(Math.max(r, 1e-4), ...SPHERE_SEGMENTS);
   } else {
     g = new THREE.BoxGeometry(2 * hx + 2 * r, 2 * hy + 2 * r, 2 * hz + 2 * r);
   }
   geometryCache.set(key, g);
   return g;
 }
+
+const sameShapes = (a, b) => !!b && a.length === b.length && a.every((s, i) => s.length === b[i].length && s.every((v, k) => v === b[i][k]));
 
 class HandView {
   constructor(index, name) {
@@ -157,9 +221,8 @@ class HandView {
   }
 
   ensureBodies(shapes) {
-    const key = JSON.stringify(shapes);
-    if (key === this.shapes) return;
-    this.shapes = key;
+    if (sameShapes(shapes, this.shapes)) return;
+    this.shapes = shapes;
     for (const m of this.godBodies) this.god.remove(m);
     for (const m of this.ghostBodies) this.ghost.remove(m);
     this.godBodies = shapes.map((s) => new THREE.Mesh(bodyGeometry(s), this.godMat));
@@ -221,32 +284,46 @@ function hand(index, name) {
 }
 
 // ---------- contacts ----------
-const contactRoot = new THREE.Group();
-scene.add(contactRoot);
-const contactMat = new THREE.MeshBasicMaterial({ color: 0xffe14d });
-const contactGeom = new THREE.SphereGeometry(0.003, 8, 6);
-const arrows = [], points = [];
-const FORCE_SCALE = 0.03;  // m per N (plus 1.5 cm so that small forces show)
+// Every contact point, arrow shaft and arrow head in one draw call each (instances, one line
+// buffer), up to MAX_CONTACTS; a force arrow is 1.5 cm plus 3 cm per N, at most 8 cm.
+const MAX_CONTACTS = 320;
+const FORCE_SCALE = 0.03;  // m per N
+const HEAD_LENGTH = 0.007, HEAD_WIDTH = 0.005;
+const contactPoints = new THREE.InstancedMesh(new THREE.SphereGeometry(0.003, 8, 6), new THREE.MeshBasicMaterial({ color: 0xffe14d }), MAX_CONTACTS);
+const arrowHeads = new THREE.InstancedMesh(new THREE.ConeGeometry(0.5, 1, 5, 1).translate(0, 0.5, 0),  // base at 0, tip at +y 1
+  new THREE.MeshBasicMaterial({ color: 0xff2020, toneMapped: false }), MAX_CONTACTS);
+const shaftGeometry = new THREE.BufferGeometry();
+shaftGeometry.setAttribute('position', new THREE.BufferAttribute(new Float32Array(6 * MAX_CONTACTS), 3).setUsage(THREE.DynamicDrawUsage));
+const shafts = new THREE.LineSegments(shaftGeometry, new THREE.LineBasicMaterial({ color: 0xff2020, toneMapped: false }));
+for (const o of [contactPoints, arrowHeads, shafts]) {
+  o.frustumCulled = false;  // their bounds change with every message
+  scene.add(o);
+}
+contactPoints.instanceMatrix.setUsage(THREE.DynamicDrawUsage);
+arrowHeads.instanceMatrix.setUsage(THREE.DynamicDrawUsage);
+const dir = new THREE.Vector3(), at = new THREE.Vector3(), headAt = new THREE.Vector3(), turn = new THREE.Quaternion();
+const unitScale = new THREE.Vector3(1, 1, 1), headScale = new THREE.Vector3(HEAD_WIDTH, HEAD_LENGTH, HEAD_WIDTH);
+const yAxis = new THREE.Vector3(0, 1, 0), noTurn = new THREE.Quaternion(), tmpMatrix = new THREE.Matrix4();
 function setContacts(list) {
-  while (arrows.length < list.length && arrows.length < 320) {
-    const a = new THREE.ArrowHelper(new THREE.Vector3(0, 0, 1), new THREE.Vector3(), 0.02, 0xff2020, 0.007, 0.005);
-    a.line.material.linewidth = 2;
-    const p = new THREE.Mesh(contactGeom, contactMat);
-    arrows.push(a); points.push(p);
-    contactRoot.add(a, p);
-  }
-  const dir = new THREE.Vector3();
-  arrows.forEach((a, i) => {
-    const c = list[i];
-    const on = !!c && c.p[0] !== null && c.n[0] !== null;
-    a.visible = points[i].visible = on;
-    if (!on) return;
-    points[i].position.set(c.p[0], c.p[1], c.p[2]);
-    a.position.set(c.p[0], c.p[1], c.p[2]);
+  const shaft = shaftGeometry.attributes.position.array;
+  let n = 0;
+  for (const c of list) {
+    if (n === MAX_CONTACTS) break;
+    if (!c || c.p[0] === null || c.n[0] === null) continue;
+    at.set(c.p[0], c.p[1], c.p[2]);
     dir.set(c.n[0], c.n[1], c.n[2]).normalize();
-    a.setDirection(dir);
-    a.setLength(Math.min(0.08, 0.015 + FORCE_SCALE * Math.max(0, c.lambda || 0)), 0.007, 0.005);
-  });
+    const length = Math.min(0.08, 0.015 + FORCE_SCALE * Math.max(0, c.lambda || 0));
+    headAt.copy(at).addScaledVector(dir, length - HEAD_LENGTH);
+    contactPoints.setMatrixAt(n, tmpMatrix.compose(at, noTurn, unitScale));
+    arrowHeads.setMatrixAt(n, tmpMatrix.compose(headAt, turn.setFromUnitVectors(yAxis, dir), headScale));
+    at.toArray(shaft, 6 * n);
+    headAt.toArray(shaft, 6 * n + 3);
+    n++;
+  }
+  contactPoints.count = arrowHeads.count = n;
+  contactPoints.instanceMatrix.needsUpdate = arrowHeads.instanceMatrix.needsUpdate = true;
+  shaftGeometry.setDrawRange(0, 2 * n);
+  shaftGeometry.attributes.position.needsUpdate = true;
   godhand.contacts = list.length;
 }
 
@@ -264,8 +341,12 @@ const services = new Map();
 let viewerStats = null;
 const renderRate = new RateMeter();
 
-function median(a) { if (!a.length) return null; const s = [...a].sort((x, y) => x - y); return s[Math.floor(s.length / 2)]; }
-function pct(a, p) { if (!a.length) return null; const s = [...a].sort((x, y) => x - y); return s[Math.min(s.length - 1, Math.floor(p * s.length))]; }
+// Median and 99th percentile from one sort; '–' for none.
+function medianP99(a) {
+  if (!a.length) return '–';
+  const s = Float64Array.from(a).sort();
+  return `${fmt(s[Math.floor(s.length / 2)])} ms (p99 ${fmt(s[Math.min(s.length - 1, Math.floor(0.99 * s.length))])})`;
+}
 const fmt = (v, d = 1) => (v === null || v === undefined || Number.isNaN(v) ? '–' : Number(v).toFixed(d));
 
 function drawChart() {
@@ -296,12 +377,12 @@ function updateHud() {
   rows.push(['render', `${fmt(renderRate.hz(), 0)} fps`]);
   rows.push(['feed', feed ? `${fmt(feed.received, 0)} msgs` : 'offline file']);
   if (latencies.length) {
-    rows.push(['viewer → page', `${fmt(median(arrivals))} ms (p99 ${fmt(pct(arrivals, 0.99))})`]);
-    rows.push(['viewer → drawn', `${fmt(median(latencies))} ms (p99 ${fmt(pct(latencies, 0.99))})`]);
-    rows.push(['tracker → drawn', `${fmt(median(e2e))} ms (p99 ${fmt(pct(e2e, 0.99))})`]);
+    rows.push(['viewer → page', medianP99(arrivals)]);
+    rows.push(['viewer → drawn', medianP99(latencies)]);
+    rows.push(['tracker → drawn', medianP99(e2e)]);
   }
   if (viewerStats) rows.push(['dropped (slow browsers)', `${viewerStats.dropped}`]);
-  document.getElementById('figures').innerHTML = rows.map(([k, v]) => `<tr><td>${k}</td><td class="v">${v}</td></tr>`).join('');
+  setHtml('figures', rows.map(([k, v]) => `<tr><td>${k}</td><td class="v">${v}</td></tr>`).join(''));
   const hs = [...hands.values()].sort((a, b) => a.index - b.index).map((h) => {
     const s = h.state;
     let badge = '<span class="badge off">waiting</span>';
@@ -314,17 +395,30 @@ function updateHud() {
       `${fmt(h.rate.hz(), 0)} Hz · frame ${s ? s.stamp.frame : '–'} · contacts ${s && s.contacts !== null && s.contacts !== undefined ? s.contacts : '–'} · ` +
       `penetration ${pen} · lag ${lag === null ? '–' : fmt(lag * 1000, 1) + ' mm'}</div>`;
   });
-  document.getElementById('hands').innerHTML = hs.join('');
+  setHtml('hands', hs.join(''));
   const svc = [...services.values()].sort((a, b) => a.service.localeCompare(b.service)).map((s) => {
     const age = (nowNs() - s.recv_ns) / 1e9;
     const state = age > 2 ? 'gone' : s.state;
     return `<tr><td>${s.service}</td><td><span class="badge ${state === 'running' ? 'fresh' : 'stale'}">${state}</span></td>` +
       `<td class="v">${fmt(s.rate_hz, 1)} Hz</td><td class="v">${fmt(s.latency_median_us / 1000, 2)} ms</td></tr>`;
   });
-  document.getElementById('services').innerHTML = svc.join('');
-  drawChart();
+  setHtml('services', svc.join(''));
+  if (history.length !== chartDrawn.n || history[history.length - 1] !== chartDrawn.last) {
+    chartDrawn.n = history.length;
+    chartDrawn.last = history[history.length - 1];
+    drawChart();
+  }
 }
-setInterval(updateHud, 250);
+// The DOM is touched only where its text changed (each change costs a style, layout and paint).
+const htmlNow = new Map();
+function setHtml(id, html) {
+  if (htmlNow.get(id) === html) return;
+  htmlNow.set(id, html);
+  document.getElementById(id).innerHTML = html;
+}
+const chartDrawn = { n: -1, last: null };
+// Twice a second, and not at all while the tab is hidden.
+setInterval(() => { if (!document.hidden) timed('hud', updateHud); }, 500);
 
 // ---------- test hooks ----------
 const godhand = {
@@ -334,6 +428,11 @@ const godhand = {
   contacts: 0,
   received: { hand_state: 0, hand_target: 0, scene_state: 0, contact_forces: 0, service_status: 0, scene_description: 0 },
   renders: 0,
+  maxFps: MAX_FPS,
+  // Where the page's main thread spent its time (performance.now(), ms, cumulative): drawing the
+  // frames, taking the feed's messages, the figures.
+  cost: { draw: 0, messages: 0, hud: 0 },
+  renderInfo: () => ({ ...renderer.info.render }),  // the last frame's draw calls and triangles
   latenciesMs: latencies,
   arrivalMs: arrivals,
   endToEndMs: e2e,
@@ -346,13 +445,17 @@ const godhand = {
 };
 window.godhand = godhand;
 
+const tmpP = new THREE.Vector3(), tmpQ = new THREE.Quaternion(), tmpS = new THREE.Vector3();
+function readPose(m) {
+  m.matrixWorld.decompose(tmpP, tmpQ, tmpS);
+  return [tmpP.x, tmpP.y, tmpP.z, tmpQ.w, tmpQ.x, tmpQ.y, tmpQ.z];
+}
 function recordDrawn() {
   const t = nowNs();
   for (const h of hands.values()) {
     if (!h.state) continue;
-    const p = new THREE.Vector3(), q = new THREE.Quaternion(), s = new THREE.Vector3();
-    const poses = h.godBodies.map((m) => { m.matrixWorld.decompose(p, q, s); return [p.x, p.y, p.z, q.w, q.x, q.y, q.z]; });
-    const ghost = h.ghostBodies.map((m) => { m.matrixWorld.decompose(p, q, s); return [p.x, p.y, p.z, q.w, q.x, q.y, q.z]; });
+    const poses = h.godBodies.map(readPose);
+    const ghost = h.ghostBodies.map(readPose);
     godhand.drawn[h.index] = { cluster: h.name, frame: h.pendingFrame, run: h.state.stamp.run, stale: h.state.stale, held: h.state.held,
       penetrationMax: h.penMax === undefined ? null : h.penMax,
       poses, ghost, ghostVisible: h.ghost.visible };
@@ -364,17 +467,6 @@ function recordDrawn() {
       h.pendingRecv = null;
     }
   }
-}
-
-function animate() {
-  requestAnimationFrame(animate);
-  if (offline && offline.playing) offline.advance();
-  synthetic.step();
-  controls.update();
-  renderer.render(scene, camera);
-  godhand.renders++;
-  renderRate.tick();
-  recordDrawn();
 }
 
 // ---------- live ----------
@@ -402,6 +494,10 @@ function onMessage(topic, m) {
   const kind = topic.replace('godhand/', '');
   if (godhand.received[kind] !== undefined) godhand.received[kind]++;
   if (godhand.freeze) return;  // tests: hold the picture still (messages counted, not drawn)
+  timed('messages', () => applyMessage(kind, m));
+}
+
+function applyMessage(kind, m) {
   switch (kind) {
     case 'hand_state': {
       if (m.recv_ns) { arrivals.push((nowNs() - m.recv_ns) / 1e6); if (arrivals.length > 2000) arrivals.shift(); }
@@ -412,16 +508,18 @@ function onMessage(topic, m) {
         history.push({ ...m.times_us, scene: sceneStepUs });
         if (history.length > 100) history.shift();
       }
+      requestRender();
       break;
     }
     case 'hand_target': {
       const h = hand(m.hand, m.cluster);
       if (!synthetic.owns(m.hand)) h.setTargets(m.targets, m.driven, m.tracked);
+      requestRender();
       break;
     }
-    case 'scene_description': loadScene(m); break;
-    case 'scene_state': sceneStepUs = m.step_us || 0; applySceneState(m); break;
-    case 'contact_forces': setContacts(m.contacts); break;
+    case 'scene_description': loadScene(m); requestRender(); break;
+    case 'scene_state': sceneStepUs = m.step_us || 0; applySceneState(m); requestRender(); break;
+    case 'contact_forces': setContacts(m.contacts); requestRender(); break;
     case 'service_status': services.set(m.service, m); break;
     case 'viewer_stats': viewerStats = m; godhand.viewerStats = m; break;
     default: break;
@@ -518,18 +616,27 @@ async function startOffline() {
         }
       });
       frameCamera();
+      requestRender();
       godhand.offline = { frame: data.frames[this.index], index: this.index, frames: data.frames.length, hands: data.hands.length,
         has_targets: data.has_targets };
     },
-    advance() {
-      const t = performance.now();
-      if (t - this.last < 1000 / this.fps) return;
-      this.last = t;
-      this.show(this.index + 1 >= data.frames.length ? 0 : this.index + 1);
+    // Plays at the file's rate whatever the drawing rate: skips the frames that fell between two
+    // drawn ones (after a pause or a hidden tab, goes on from where it was).
+    advance(t) {
+      if (t - this.last > 1000) this.last = t - 1000 / this.fps;
+      const n = Math.max(0, Math.floor((t - this.last) * this.fps / 1000));
+      if (!n) return;
+      this.last += n * 1000 / this.fps;
+      this.show((this.index + n) % data.frames.length);
     },
   };
   scrub.addEventListener('input', () => { offline.playing = false; play.textContent = 'play'; offline.show(Number(scrub.value)); });
-  play.addEventListener('click', () => { offline.playing = !offline.playing; play.textContent = offline.playing ? 'pause' : 'play'; });
+  play.addEventListener('click', () => {
+    offline.playing = !offline.playing;
+    play.textContent = offline.playing ? 'pause' : 'play';
+    offline.last = performance.now();
+    requestRender();
+  });
   godhand.showFrame = (i) => { offline.playing = false; play.textContent = 'play'; offline.show(i); };
   offline.show(0);
 }
@@ -539,10 +646,11 @@ fetch('mode.json').then((r) => r.json()).then((m) => {
   const help = document.getElementById('synthetic-help');
   if (m.mode === 'live' && m.synthetic !== null && m.synthetic !== undefined) {
     synthetic.hand = m.synthetic;
+    setInterval(() => synthetic.step(), 30);  // the keys move the target whatever is drawn
     help.innerHTML = 'synthetic hand: <b>W/A/S/D</b> move, <b>Q/E</b> down/up, or <b>Shift</b>-drag';
   } else {
     help.style.display = 'none';
   }
   if (m.mode === 'offline') startOffline(); else startLive();
 });
-animate();
+requestRender();
