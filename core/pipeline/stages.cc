@@ -549,8 +549,9 @@ Resolver::Resolver(const Scene& scene, std::vector<const HandModel*> hands, cons
     if (!m) throw std::invalid_argument("resolver: null hand model");
     Hand h;
     h.model = m;
-    h.stepper = std::make_unique<ClusterStepper>(*m, params_.step);
-    h.stepper->reserve(static_cast<int>(m->bodies.size()) * params_.contacts.per_pair * 4);
+    h.projector = std::make_unique<JointProjector>(*m, params_.step);
+    h.projector->reserve(m->equalityRows() + 4 * static_cast<int>(m->joints.size()) +
+                         static_cast<int>(m->bodies.size()) * params_.contacts.per_pair * 4);
     h.contacts.reserve(m->bodies.size() * static_cast<size_t>(params_.contacts.per_pair) * 4);
     h.result.X = m->restPoses(Pose{});
     hands_.push_back(std::move(h));
@@ -697,26 +698,27 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
     applyForces(static_cast<int>(h), *p);  // λ of this step's contacts
     if (toc < 1.0) {
       // Algorithm 1: move to TOC_min, update the contacts there, re-close the joints against them.
-      hand.stepper->setMotion(hand.X_from, p->X_new);
-      hand.stepper->interpolate(toc);
+      cutMotion(hand.X_from, p->X_new, toc, &hand.X_toc);
       hand.contacts.clear();
-      const std::vector<Pose>& X = hand.stepper->poses();
       for (size_t b = 0; b < n; ++b)
-        collision_.contacts(hand.model->bodies[b].shape, X[b], static_cast<int>(b), params_.contact_reach,
+        collision_.contacts(hand.model->bodies[b].shape, hand.X_toc[b], static_cast<int>(b), params_.contact_reach,
                             params_.contacts, &hand.contacts);
-      hand.X_toc = X;
-      hand.stepper->reproject(hand.contacts.data(), static_cast<int>(hand.contacts.size()));
+      hand.X_clip = hand.X_toc;
+      JointProjector::Input pin;
+      pin.contacts = hand.contacts.data();
+      pin.num_contacts = static_cast<int>(hand.contacts.size());
+      pin.X_ref = hand.X_toc.data();
+      const JointProjector::Result closed = hand.projector->project(hand.X_clip, pin);
       // The re-closing moves bodies too: swept as well. Where it would hit, the hand stays at its
       // last result this frame (swept: no motion), as a solver's round that cannot move would.
-      bool free = jointsClosed(hand.stepper->lastReport().joint_errors, params_.step);
-      const std::vector<Pose>& Xr = hand.stepper->poses();
+      bool free = jointsClosed(closed.joint_errors, params_.step);
       for (size_t b = 0; b < n && free; ++b) {
-        const geo::SweepResult s = collision_.sweep(hand.model->bodies[b].shape, hand.X_toc[b], Xr[b], params_.sweep);
+        const geo::SweepResult s = collision_.sweep(hand.model->bodies[b].shape, hand.X_toc[b], hand.X_clip[b], params_.sweep);
         free = !s.hit && !s.started_inside && s.toc >= 1.0;
       }
       if (free) {
-        r.X = Xr;
-        r.joint_errors = hand.stepper->lastReport().joint_errors;
+        r.X = hand.X_clip;
+        r.joint_errors = closed.joint_errors;
       } else {
         ++counters_.held_back;
         r.X = hand.X_from;

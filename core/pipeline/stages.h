@@ -353,11 +353,12 @@ class Resolver {
  private:
   struct Hand {
     const HandModel* model = nullptr;
-    std::unique_ptr<ClusterStepper> stepper;  // clip + reproject only
+    std::unique_ptr<JointProjector> projector;  // re-closes a clipped motion's joints
     HandResult result;
     std::vector<Contact> contacts;            // scratch
     std::vector<Pose> X_from;                 // scratch: start of the resolved motion
     std::vector<Pose> X_toc;                  // scratch: the clipped poses before re-closing
+    std::vector<Pose> X_clip;                 // scratch: those poses re-closed
   };
   void applyForces(int h, const HandProposal& p);
 

@@ -20,6 +20,12 @@ using Clock = std::chrono::steady_clock;
 double micros(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::micro>(b - a).count();
 }
+void assembleMasses(QpProblem& qp, const HandModel& model, const std::vector<Pose>& X) {
+  for (size_t b = 0; b < model.bodies.size(); ++b) {
+    const Body& body = model.bodies[b];
+    qp.setRigidMass(static_cast<int>(b), body.mass, X[b].q.toRotationMatrix(), body.inertia);
+  }
+}
 bool finitePositive(double x) { return std::isfinite(x) && x > 0.0; }
 void require(bool ok, const std::string& what) {
   if (!ok) throw std::invalid_argument("step parameters: " + what);
@@ -50,7 +56,7 @@ void StepParams::validate() const {
 }
 
 ClusterStepper::ClusterStepper(const HandModel& model, StepParams params)
-    : model_(model), params_(params), exact_(params.exact), pgs_(params.pgs) {
+    : model_(model), params_(params), exact_(params.exact), pgs_(params.pgs), projector_(model, params_) {
   params_.validate();
   params_.rows.dt = params_.dt;
   require(!model.bodies.empty(), "the model has no bodies");
@@ -66,12 +72,10 @@ void ClusterStepper::reserve(int contacts) {
   const int n = static_cast<int>(model_.bodies.size());
   const int rows = model_.equalityRows() + 4 * static_cast<int>(model_.joints.size()) + contacts;
   qp_.reset(n);
-  proj_.reset(n);
   qp_.reserveRows(rows);
-  proj_.reserveRows(rows);
   sol_.resize(n, rows);
-  proj_sol_.resize(n, rows);
   exact_.reserve(n, rows);
+  projector_.reserve(rows);
   pgs_.reserve(n, rows);
   if (contact_row_.size() < static_cast<size_t>(contacts)) {
     contact_row_.resize(static_cast<size_t>(contacts));
@@ -97,13 +101,6 @@ void ClusterStepper::reset(const std::vector<Pose>& X_W) {
   X_prev_ = X_W_;
   std::fill(has_last_target_.begin(), has_last_target_.end(), 0);
   warm_prev_.clear();
-}
-
-void ClusterStepper::assembleMasses(QpProblem& qp, const std::vector<Pose>& X) const {
-  for (size_t b = 0; b < model_.bodies.size(); ++b) {
-    const Body& body = model_.bodies[b];
-    qp.setRigidMass(static_cast<int>(b), body.mass, X[b].q.toRotationMatrix(), body.inertia);
-  }
 }
 
 const StepReport& ClusterStepper::step(const StepInput& in) {
@@ -199,7 +196,7 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
   const auto t1 = Clock::now();
 
   // Assembly: masses at the current orientations, joint rows, limit rows, contact rows.
-  assembleMasses(qp_, X_W_);
+  assembleMasses(qp_, model_, X_W_);
   addJointRows(qp_, model_, X_W_.data(), params_.rows);
   report_.equality_rows = qp_.numRows();
   report_.limit_rows = addLimitRows(qp_, model_, X_W_.data(), qp_.unconstrainedData(), params_.rows);
@@ -356,11 +353,16 @@ bool anyActiveFrom(int first, const QpProblem& qp, const QpSolution& sol) {
 constexpr int kGoalIterations = 3;
 }  // namespace
 
-void ClusterStepper::interpolate(double toc) {
+void cutMotion(const std::vector<Pose>& X_prev, const std::vector<Pose>& X_new, double toc, std::vector<Pose>* X) {
+  if (X != &X_new) *X = X_new;
   if (!(toc < 1.0)) return;
   toc = std::max(0.0, toc);
-  for (size_t b = 0; b < X_W_.size(); ++b)
-    X_W_[b] = poseUpdate(X_prev_[b], poseDifference(X_W_[b], X_prev_[b]), toc);
+  for (size_t b = 0; b < X->size(); ++b) (*X)[b] = poseUpdate(X_prev[b], poseDifference((*X)[b], X_prev[b]), toc);
+}
+
+void ClusterStepper::interpolate(double toc) {
+  if (!(toc < 1.0)) return;
+  cutMotion(X_prev_, X_W_, toc, &X_W_);
   report_.joint_errors = jointErrors(model_, X_W_.data());
 }
 
@@ -397,37 +399,67 @@ void ClusterStepper::reproject(const Contact* contacts, int num_contacts) {
 }
 
 int ClusterStepper::project(const StepInput& in, bool allow_pull, const std::vector<Pose>& X_ref, bool fresh) {
+  JointProjector::Input pin;
+  pin.contacts = in.contacts;
+  // fresh: every valid contact; else the ones the step made rows of.
+  pin.num_contacts = fresh ? std::max(0, in.num_contacts) : static_cast<int>(contact_row_.size());
+  pin.use = fresh ? nullptr : contact_row_.data();
+  pin.X_ref = X_ref.data();
+  // The pull only while no contact of the step carries force.
+  const int first_contact = report_.equality_rows + report_.limit_rows;
+  if (allow_pull && !anyActiveFrom(first_contact, qp_, sol_)) pin.goal = goal_.data();
+  const JointProjector::Result r = projector_.project(X_W_, pin);
+  report_.joint_errors = r.joint_errors;
+  report_.contact_violation = r.contact_violation;
+  return r.iterations;
+}
+
+JointProjector::JointProjector(const HandModel& model, const StepParams& params)
+    : model_(model), params_(params), exact_(params.exact) {}
+
+void JointProjector::reserve(int rows) {
+  const int n = static_cast<int>(model_.bodies.size());
+  proj_.reset(n);
+  proj_.reserveRows(rows);
+  proj_sol_.resize(n, rows);
+  exact_.reserve(n, rows);
+  warm_.reserve(static_cast<size_t>(rows));
+}
+
+JointProjector::Result JointProjector::project(std::vector<Pose>& X_W_, const Input& in) {
   // Position-level Newton iterations on the same rows: Δt = 1, β = 1. While no contact carries
-  // force, z_u = G ⊖ X (towards the unconstrained goal; at most kGoalIterations), otherwise
-  // z_u = 0: the M-smallest displacement that closes the joints, brings violated limits back to
-  // their bounds and moves no contact further in than it already is. Stops once joints and
-  // limits hold to the tolerance.
+  // force, z_u = G ⊖ X (towards the goal; at most kGoalIterations), otherwise z_u = 0: the
+  // M-smallest displacement that closes the joints, brings violated limits back to their bounds
+  // and moves no contact further in than it already is. Stops once joints and limits hold to the
+  // tolerance.
   RowParams pp = params_.rows;
   pp.dt = 1.0;
   pp.beta = 1.0;
   pp.contact_beta = 1.0;
   const int n = static_cast<int>(model_.bodies.size());
-  const int first_contact = report_.equality_rows + report_.limit_rows;
-  bool pull = allow_pull && !anyActiveFrom(first_contact, qp_, sol_);
+  const Pose* X_ref = in.X_ref;
+  bool pull = in.goal != nullptr;
+  auto used = [&](size_t i) { return in.use ? in.use[i] >= 0 : validContact(in.contacts[i], n); };
+  const size_t nc = static_cast<size_t>(std::max(0, in.num_contacts));
+  Result result;
   double last_violation = 0.0;
   int it = 0;
   for (;; ++it) {
-    // The errors of the current poses: the report's figures when the loop ends here.
-    report_.joint_errors = jointErrors(model_, X_W_.data());
-    const JointErrors& e = report_.joint_errors;
+    // The errors of the current poses: the result's figures when the loop ends here.
+    result.joint_errors = jointErrors(model_, X_W_.data());
+    const JointErrors& e = result.joint_errors;
     // Contacts moved further in than allowed (the rows are linear in the rotation; the rigid
     // motion of the contact point is not): min(d_ref, δ) − d_now.
     double contact_violation = 0.0;
-    const size_t nc = fresh ? static_cast<size_t>(std::max(0, in.num_contacts)) : contact_row_.size();
     for (size_t i = 0; i < nc; ++i) {
+      if (!used(i)) continue;
       const Contact& c = in.contacts[i];
-      if (fresh ? !validContact(c, n) : contact_row_[i] < 0) continue;
       const size_t b = static_cast<size_t>(c.body);
       const Vec3 p_now = X_W_[b] * (X_ref[b].inverse() * c.p_W);
       const double d_now = c.distance + c.n_W.normalized().dot(p_now - c.p_W);
       contact_violation = std::max(contact_violation, std::min(c.distance, pp.margin) - d_now);
     }
-    report_.contact_violation = contact_violation;
+    result.contact_violation = contact_violation;
     if (it >= params_.projection_iterations ||
         std::max({e.gap, e.lock, e.limit, contact_violation}) <= params_.projection_tolerance)
       break;
@@ -440,17 +472,17 @@ int ClusterStepper::project(const StepInput& in, bool allow_pull, const std::vec
       break;
     last_violation = contact_violation;
     proj_.reset(n);
-    assembleMasses(proj_, X_W_);
+    assembleMasses(proj_, model_, X_W_);
     pull = pull && it < kGoalIterations;
     if (pull)
       for (int b = 0; b < n; ++b)
-        proj_.unconstrained(b) = poseDifference(goal_[static_cast<size_t>(b)], X_W_[static_cast<size_t>(b)]);
+        proj_.unconstrained(b) = poseDifference(in.goal[static_cast<size_t>(b)], X_W_[static_cast<size_t>(b)]);
     addJointRows(proj_, model_, X_W_.data(), pp);
     addLimitRows(proj_, model_, X_W_.data(), pull ? proj_.unconstrainedData() : nullptr, pp);
     const int proj_first_contact = proj_.numRows();
     for (size_t i = 0; i < nc; ++i) {
+      if (!used(i)) continue;
       const Contact& c = in.contacts[i];
-      if (fresh ? !validContact(c, n) : contact_row_[i] < 0) continue;
       const size_t b = static_cast<size_t>(c.body);
       const Vec3 n_W = c.n_W.normalized();
       // The contact point moves rigidly with its body (from the pose X_ref it was found at);
@@ -464,20 +496,20 @@ int ClusterStepper::project(const StepInput& in, bool allow_pull, const std::vec
     proj_.finalize();
     // From the second iteration on the rows are the same ones re-linearised a few µm away:
     // warm-started from the last iteration's active set (where the row layout is the same).
-    const bool warm = it > 0 && proj_warm_.size() == static_cast<size_t>(proj_.numRows());
+    const bool warm = it > 0 && warm_.size() == static_cast<size_t>(proj_.numRows());
     if (warm)
       for (int r = 0; r < proj_.numRows(); ++r)
-        proj_warm_[static_cast<size_t>(r)] = proj_.row(r).type == RowType::Inequality && proj_warm_[static_cast<size_t>(r)];
-    const SolveStats s = exact_.solve(proj_, proj_sol_, warm ? proj_warm_.data() : nullptr);
-    proj_warm_.resize(static_cast<size_t>(proj_.numRows()));
-    for (int r = 0; r < proj_.numRows(); ++r)
-      proj_warm_[static_cast<size_t>(r)] = proj_sol_.lambda[static_cast<size_t>(r)] > 0.0;
+        warm_[static_cast<size_t>(r)] = proj_.row(r).type == RowType::Inequality && warm_[static_cast<size_t>(r)];
+    const SolveStats s = exact_.solve(proj_, proj_sol_, warm ? warm_.data() : nullptr);
+    warm_.resize(static_cast<size_t>(proj_.numRows()));
+    for (int r = 0; r < proj_.numRows(); ++r) warm_[static_cast<size_t>(r)] = proj_sol_.lambda[static_cast<size_t>(r)] > 0.0;
     if (s.status == SolveStatus::NumericalFailure) break;  // poses unchanged: errors still current
     if (pull && anyActiveFrom(proj_first_contact, proj_, proj_sol_)) pull = false;
     for (int b = 0; b < n; ++b)
       X_W_[static_cast<size_t>(b)] = poseUpdate(X_W_[static_cast<size_t>(b)], proj_sol_.z[static_cast<size_t>(b)], 1.0);
   }
-  return it;
+  result.iterations = it;
+  return result;
 }
 
 void ClusterStepper::rememberWarmStart() {

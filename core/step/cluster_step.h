@@ -83,6 +83,53 @@ inline bool jointsClosed(const JointErrors& e, const StepParams& p) {
   return std::max(e.gap, e.lock) <= 1e3 * p.projection_tolerance;
 }
 
+/// The motion X_prev → X_new cut at fraction `toc` of each body's own motion, X = X_prev ⊕ t (X_new ⊖
+/// X_prev) (the motion the sweep assumed, paper Eqs. 29–30), into X (which may be X_new itself).
+/// toc ≥ 1: X = X_new.
+void cutMotion(const std::vector<Pose>& X_prev, const std::vector<Pose>& X_new, double toc, std::vector<Pose>* X);
+
+/// The projection (post-stabilisation, METHOD.md §2 step 4): position-level Newton iterations of
+/// the Gauss QP (Δt = 1, β = 1, rows re-linearised at the current poses) until the joints close to
+/// round-off and the limits hold, moving no contact further in than it is. While `goal` is given
+/// and no contact carries force, the first iterations also pull every body towards its goal
+/// (Newton on the nonlinear problem); otherwise the M-smallest displacement (z_u = 0). Always the
+/// exact solver. One unit with its own QP, solver and scratch, used by the step (after its
+/// integration) and by every clipping of a motion (Algorithm 1: to TOC_min, contacts there, the
+/// joints re-closed against them: HandSolver::clip, Resolver), which own only their poses.
+class JointProjector {
+ public:
+  /// params as the stepper's (validated there); the model must outlive the projector.
+  JointProjector(const HandModel& model, const StepParams& params);
+  /// Grows buffers for problems of up to `rows` rows (nothing allocated once warm).
+  void reserve(int rows);
+
+  struct Input {
+    const Contact* contacts = nullptr;
+    int num_contacts = 0;
+    /// Per contact, nullptr = every valid contact: a negative entry skips the contact.
+    const int* use = nullptr;
+    /// Per body: the poses the contacts were found at (their points move rigidly from there).
+    const Pose* X_ref = nullptr;
+    /// Per body, nullptr = none: the goal the first iterations pull towards (see above).
+    const Pose* goal = nullptr;
+  };
+  struct Result {
+    int iterations = 0;
+    JointErrors joint_errors;        ///< of the final poses
+    double contact_violation = 0.0;  ///< m: contact points further in than allowed
+  };
+  /// Projects the poses X (one per body) in place.
+  Result project(std::vector<Pose>& X, const Input& in);
+
+ private:
+  const HandModel& model_;
+  StepParams params_;
+  QpProblem proj_;
+  QpSolution proj_sol_;
+  ActiveSetSolver exact_;
+  std::vector<unsigned char> warm_;  // the last iteration's active rows (the next one's warm start)
+};
+
 struct StageTimes {
   double coupling_us = 0, assembly_us = 0, solve_us = 0, integrate_us = 0, project_us = 0;
   double total_us() const { return coupling_us + assembly_us + solve_us + integrate_us + project_us; }
@@ -171,7 +218,6 @@ class ClusterStepper {
   const QpSolution& solution() const { return sol_; }
 
  private:
-  void assembleMasses(QpProblem& qp, const std::vector<Pose>& X) const;
   // Also sets report_.joint_errors of the final poses. Contacts were found at poses X_ref; fresh:
   // use every valid contact (else only those the last step added as rows).
   int project(const StepInput& in, bool allow_pull, const std::vector<Pose>& X_ref, bool fresh);
@@ -181,10 +227,11 @@ class ClusterStepper {
   StepParams params_;
   std::vector<Pose> X_W_, X_prev_, X_ref_, last_target_, goal_, X_integrated_;
   std::vector<unsigned char> has_last_target_;
-  QpProblem qp_, proj_;
-  QpSolution sol_, proj_sol_;
+  QpProblem qp_;
+  QpSolution sol_;
   ActiveSetSolver exact_;
   PgsSolver pgs_;
+  JointProjector projector_;
   std::vector<int> contact_row_;       // contact i -> row index or -1
   std::vector<unsigned char> near_;    // per body: a contact within contact_rotation_distance
   std::vector<double> lambda_contacts_;
@@ -192,7 +239,6 @@ class ClusterStepper {
   std::vector<std::pair<std::uint64_t, double>> warm_prev_;
   std::vector<double> warm_lambda_;
   std::vector<unsigned char> warm_flags_;
-  std::vector<unsigned char> proj_warm_;  // the projection's last active rows (its next iteration's warm start)
   StepReport report_;
   StepCounters counters_;
 };
