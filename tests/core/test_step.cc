@@ -1156,6 +1156,58 @@ std::vector<std::uint64_t> hashedRun(SolverKind kind, int steps) {
   return hashes;
 }
 
+// Clipping a motion (Algorithm 1): each body cut back to a fraction of its own motion opens the
+// joints by O(θ²); the projection re-closes them against contacts found at the cut poses, by a
+// correction of the order of the gap, pushing no contact point further in than it was (the plane
+// distances recomputed from the shapes). The Resolver's path (cutMotion + JointProjector) and the
+// solver's (ClusterStepper::setMotion, interpolate, reproject) give the same poses bit for bit.
+TEST(JointProjection, ReclosesACutMotionWithoutPushingAContactIn) {
+  const HandModel& m = hand16();
+  const Pose X_WM0{Vec3(0.0, 0.0, 0.10), Quat::Identity()};
+  const Pose X_WM1{Vec3(0.03, -0.02, 0.08), Quat(Eigen::AngleAxisd(0.9, Vec3(1, 1, 0).normalized()))};
+  const std::vector<Pose> X_prev = curledPose(m, X_WM0, 0.2), X_new = curledPose(m, X_WM1, 0.9);
+  ASSERT_LE(jointErrors(m, X_prev.data()).gap, 1e-12);
+  ASSERT_LE(jointErrors(m, X_new.data()).gap, 1e-12);
+  std::vector<Pose> X_cut;
+  cutMotion(X_prev, X_new, 0.5, &X_cut);
+  const double gap_before = jointErrors(m, X_cut.data()).gap;
+  EXPECT_GT(gap_before, 1e-5);  // per-body interpolation opens the joints
+  const double h = minHeightAbovePlane(m, X_cut, 0.0) - 5e-4;  // a plane 0.5 mm below the lowest point
+  std::vector<Contact> contacts;
+  planeContacts(m, X_cut, h, 0.01, contacts);
+  ASSERT_FALSE(contacts.empty());
+
+  StepParams params;
+  JointProjector projector(m, params);
+  projector.reserve(256);
+  std::vector<Pose> X = X_cut;
+  JointProjector::Input in;
+  in.contacts = contacts.data();
+  in.num_contacts = static_cast<int>(contacts.size());
+  in.X_ref = X_cut.data();
+  const JointProjector::Result r = projector.project(X, in);
+  const JointErrors after = jointErrors(m, X.data());
+  figure("projection_gap_before_m", gap_before);
+  figure("projection_gap_after_m", after.gap);
+  EXPECT_LE(after.gap, 1e-9);
+  EXPECT_LE(after.lock, 1e-9);
+  EXPECT_DOUBLE_EQ(r.joint_errors.gap, after.gap);
+  EXPECT_GE(r.iterations, 1);
+  // No contact point further in than min(its distance, the margin), within the projection's
+  // second-order round-off (1 µm).
+  const double allowed = std::min(5e-4, params.rows.margin);
+  EXPECT_GE(minHeightAbovePlane(m, X, h), allowed - 1e-6);
+  // The correction is of the order of the gap, not a new pose.
+  EXPECT_LE(maxPositionError(X, X_cut), 20.0 * gap_before);
+
+  ClusterStepper stepper(m, params);
+  stepper.setMotion(X_prev, X_new);
+  stepper.interpolate(0.5);
+  EXPECT_EQ(fnv1a(stepper.poses()), fnv1a(X_cut));
+  stepper.reproject(contacts.data(), static_cast<int>(contacts.size()));
+  EXPECT_EQ(fnv1a(stepper.poses()), fnv1a(X));
+}
+
 TEST(StepDeterminism, IdenticalInputsGiveBitIdenticalPoses) {
   for (SolverKind kind : {SolverKind::Exact, SolverKind::Pgs}) {
     // Two steppers in lock-step on the same inputs.
