@@ -90,23 +90,15 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
     rep.tracked = r.tracked;
     rep.started = r.started;
     rep.lifted_start = r.lifted_start;
-    rep.contacts = r.contacts;
-    rep.toc = r.toc;
-    rep.started_inside = r.started_inside;
-    rep.kkt = r.kkt;
-    rep.status = r.status;
-    rep.flags = r.flags;
+    rep.diag = r.diag;
     rep.force_N = r.force_N;
-    rep.joint_errors = r.joint_errors;
     rep.loaded = r.loaded;
-    rep.clipped = r.clipped;
-    rep.substeps = r.substeps;
-    report_.contacts += r.contacts;
-    report_.times.contacts_us += r.solver_times.contacts_us;
-    report_.times.assembly_us += r.solver_times.assembly_us;
-    report_.times.solve_us += r.solver_times.solve_us;
-    report_.times.integrate_us += r.solver_times.integrate_us;
-    report_.times.ccd_us += r.ccd_us + r.solver_times.ccd_us;
+    report_.contacts += r.diag.contacts;
+    report_.times.contacts_us += r.diag.times.contacts_us;
+    report_.times.assembly_us += r.diag.times.assembly_us;
+    report_.times.solve_us += r.diag.times.solve_us;
+    report_.times.integrate_us += r.diag.times.integrate_us;
+    report_.times.ccd_us += r.ccd_us + r.diag.times.ccd_us;
     report_.times.merge_us += r.merge_us;
   }
   // counters: the sums of the stages'

@@ -53,17 +53,9 @@ struct HandFrameReport {
   bool tracked = false;               ///< targets were given this frame
   bool started = false;               ///< the hand exists (was tracked at least once)
   bool lifted_start = false;          ///< this frame started it above an occupied target
-  int contacts = 0;
-  double toc = 1.0;                   ///< TOC_min of this cluster
-  bool started_inside = false;        ///< a sweep began inside an object (counted)
-  double kkt = 0.0;
-  SolveStatus status = SolveStatus::Converged;
-  std::uint32_t flags = 0;
+  StepDiagnostics diag;               ///< the resolved step's (HandResult::diag)
   double force_N = 0.0;               ///< Σ |f| sent to the scene
   bool loaded = false;                ///< some contact carried force this frame
-  bool clipped = false;               ///< the motion was clipped (some round hit the scene)
-  int substeps = 0;                   ///< solve -> sweep rounds taken
-  JointErrors joint_errors;
 };
 
 struct FrameReport {

@@ -152,7 +152,7 @@ void HandSolver::setScene(const SceneSnapshot& snapshot) {
 void HandSolver::adopt(const HandResult& result) {
   if (!started_ || !result.started || result.X.size() != model_.bodies.size()) return;
   stepper_->adoptPoses(result.X);
-  last_errors_ = result.joint_errors;
+  last_errors_ = result.diag.joint_errors;
 }
 
 void HandSolver::resume(const HandResult& result) {
@@ -161,7 +161,7 @@ void HandSolver::resume(const HandResult& result) {
     if (!isValidPose(X, 1e-6)) return;
   stepper_->reset(result.X);
   started_ = true;
-  last_errors_ = result.joint_errors;
+  last_errors_ = result.diag.joint_errors;
 }
 
 bool HandSolver::freeStart(std::vector<Pose>* X, Vec3* shift) const {
@@ -428,22 +428,15 @@ JointErrors HandSolver::clip(double toc_min) {
 
 const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
   HandProposal& p = proposal_;
+  StepDiagnostics& d = p.diag;
   p.frame = frame;
   p.scene_frame = scene_frame_;
   p.scene_step = scene_step_;
   p.tracked = in.tracked && in.targets != nullptr;
   p.lifted_start = false;
-  p.contact_count = 0;
   p.loads.clear();
-  p.kkt = 0.0;
-  p.status = SolveStatus::Converged;
-  p.flags = 0;
-  p.times = SolverTimes{};
-  p.substeps = 0;
-  p.toc = 1.0;
-  p.clipped = false;
+  p.diag = StepDiagnostics{};
   p.swept = false;
-  p.started_inside = false;
   ++counters_.steps;
   if (p.tracked && !started_) start(in);
   p.started = started_;
@@ -451,7 +444,7 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
   if (!p.tracked || !started_) {  // frozen: no step, no contacts, no forces
     contacts_.clear();
     p.X_new = p.X_old;
-    p.joint_errors = started_ ? last_errors_ : JointErrors{};
+    d.joint_errors = started_ ? last_errors_ : JointErrors{};
     p.swept = true;  // no motion
     return p;
   }
@@ -468,27 +461,27 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
   for (;;) {
     Clock::time_point t0 = Clock::now();
     generateContacts(in);
-    p.times.contacts_us += usSince(t0);
+    d.times.contacts_us += usSince(t0);
     si.contacts = contacts_.data();
     si.num_contacts = static_cast<int>(contacts_.size());
     si.rotation_cap = nullptr;
     for (double cap : rotation_cap_)
       if (cap < std::numeric_limits<double>::infinity()) si.rotation_cap = rotation_cap_.data();
     const StepReport& sr = stepper_->step(si);
-    ++p.substeps;
+    ++d.substeps;
     if (trace_ >= 1)
       emit(params_, "trace: frame %llu round %d status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu scale %.3g\n",
-                   static_cast<unsigned long long>(frame), p.substeps, static_cast<int>(sr.solve.status),
+                   static_cast<unsigned long long>(frame), d.substeps, static_cast<int>(sr.solve.status),
                    sr.solve.kkt_residual, sr.projection_iterations, sr.joint_errors.gap, sr.rows, sr.flags,
                    contacts_.size(), sr.motion_scale);
-    p.times.assembly_us += sr.times.coupling_us + sr.times.assembly_us;
-    p.times.solve_us += sr.times.solve_us;
-    p.times.integrate_us += sr.times.integrate_us + sr.times.project_us;
-    p.contact_count = std::max(p.contact_count, static_cast<int>(contacts_.size()));
-    p.kkt = std::max(p.kkt, sr.solve.kkt_residual);
-    if (sr.solve.status != SolveStatus::Converged) p.status = sr.solve.status;
-    p.flags |= sr.flags;
-    p.joint_errors = sr.joint_errors;
+    d.times.assembly_us += sr.times.coupling_us + sr.times.assembly_us;
+    d.times.solve_us += sr.times.solve_us;
+    d.times.integrate_us += sr.times.integrate_us + sr.times.project_us;
+    d.contacts = std::max(d.contacts, static_cast<int>(contacts_.size()));
+    d.kkt = std::max(d.kkt, sr.solve.kkt_residual);
+    if (sr.solve.status != SolveStatus::Converged) d.status = sr.solve.status;
+    d.flags |= sr.flags;
+    d.joint_errors = sr.joint_errors;
     if (sr.flags & kFlagSolverFailed) ++counters_.solver_failures;
     if (sr.flags & kFlagSolverInexact) ++counters_.inexact_solves;
     if (sr.shortened > 0) ++counters_.rounds_shortened;
@@ -503,14 +496,14 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     }
     t0 = Clock::now();
     const double toc = sweepLastMotion(&inside);
-    p.times.ccd_us += usSince(t0);
+    d.times.ccd_us += usSince(t0);
     // The clamp's scales: the free bodies' shared one, and the least of all (a body near a contact
     // clamped on its own, e.g. a thumb flipping next to a table). The rest of the motion shrinks
     // while either grows from round to round; 5 % is enough to tell growth from a hand whose
     // targets sit deep inside an object (it asks for the same clamped motion every round). A
     // 25 % threshold stopped rounds at 0.777 -> 0.969 with most of the frame's lag left.
     const double free_scale = sr.free_motion_scale, least_scale = sr.motion_scale;
-    const bool progressing = p.substeps == 1 || free_scale > kRoundProgress * last_free_scale ||
+    const bool progressing = d.substeps == 1 || free_scale > kRoundProgress * last_free_scale ||
                              least_scale > kRoundProgress * last_least_scale;
     last_free_scale = free_scale;
     last_least_scale = least_scale;
@@ -518,21 +511,21 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
       // Not clipped. A motion the clamp shortened (StepParams::max_step_*: the rows are linear in
       // the motion) goes on in the next round from here, the rest of the way to the targets, as
       // long as the rest shrinks.
-      if (std::min(free_scale, least_scale) < 1.0 && progressing && p.substeps < params_.max_substeps) continue;
+      if (std::min(free_scale, least_scale) < 1.0 && progressing && d.substeps < params_.max_substeps) continue;
       break;
     }
     // Two rounds in a row clipped at once: the contacts found at the first did not open a way.
     const bool stuck_round = toc < 1e-3 && last_toc < 1e-3;
     last_toc = toc;
-    p.clipped = true;
-    p.toc = std::min(p.toc, toc);
+    d.clipped = true;
+    d.toc = std::min(d.toc, toc);
     t0 = Clock::now();
-    p.joint_errors = clip(toc);
-    p.times.integrate_us += usSince(t0);
-    if (p.substeps >= params_.max_substeps || stuck_round) break;
+    d.joint_errors = clip(toc);
+    d.times.integrate_us += usSince(t0);
+    if (d.substeps >= params_.max_substeps || stuck_round) break;
   }
-  p.started_inside = inside;
-  last_errors_ = p.joint_errors;
+  d.started_inside = inside;
+  last_errors_ = d.joint_errors;
   p.X_new = stepper_->poses();
   p.swept = true;
   return p;
@@ -631,35 +624,27 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
     r.tracked = p->tracked;
     r.started = p->started;
     r.lifted_start = p->lifted_start;
-    r.started_inside = false;
     r.loaded = !p->loads.empty();
-    r.toc = 1.0;
-    r.contacts = p->contact_count;
-    r.kkt = p->kkt;
-    r.status = p->status;
-    r.flags = p->flags;
-    r.joint_errors = p->joint_errors;
+    r.diag = p->diag;  // the solver's step; clipping below changes its toc, clipped, joint errors
+    StepDiagnostics& d = r.diag;
     r.force_N = 0.0;
-    r.solver_times = p->times;
     r.ccd_us = r.merge_us = 0.0;
-    r.substeps = 0;
-    r.clipped = false;
     if (!p->tracked || !p->started) {  // frozen: no motion, no forces
       r.X = hand.X_from;
+      d.substeps = 0;
+      d.toc = 1.0;
+      d.clipped = false;
+      d.started_inside = false;
       continue;
     }
-    r.substeps = p->substeps;
-    r.clipped = p->clipped;
     // The solver swept its rounds from this very start against this very scene: its path is the
     // one a sweep here would check (lock-step and in-process runs: always). Otherwise (a live
     // solver that stepped from an older state or scene) the straight motion from the last result
     // is swept again and clipped here.
     if (p->swept && p->scene_frame == scene_frame_ && p->scene_step == scene_step_ && samePoses(hand.X_from, p->X_old)) {
       ++counters_.trusted;
-      r.toc = p->toc;
-      r.started_inside = p->started_inside;
-      if (r.started_inside) ++counters_.started_inside;
-      if (p->clipped) ++counters_.clipped_steps;
+      if (d.started_inside) ++counters_.started_inside;
+      if (d.clipped) ++counters_.clipped_steps;
       Clock::time_point t0 = Clock::now();
       applyForces(static_cast<int>(h), *p);
       r.X = p->X_new;
@@ -668,19 +653,20 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
         int o = -1;
         const double pen = penetration(static_cast<int>(h), &o);
         emit(params_, "trace: frame %llu hand %zu rounds %d toc %.3g gap %.3g contacts %d inside %d pen %.3g object %d scene step %llu\n",
-                     static_cast<unsigned long long>(frame), h, p->substeps, r.toc, r.joint_errors.gap, r.contacts,
-                     r.started_inside, pen, o, static_cast<unsigned long long>(scene_step_));
+                     static_cast<unsigned long long>(frame), h, d.substeps, d.toc, d.joint_errors.gap, d.contacts,
+                     d.started_inside, pen, o, static_cast<unsigned long long>(scene_step_));
       }
       continue;
     }
     ++counters_.reswept;
+    d.started_inside = false;  // of this sweep, from this start
     // ccd: TOC_min of this cluster
     Clock::time_point t0 = Clock::now();
     double toc = 1.0;
     for (size_t b = 0; b < n; ++b) {
       const Shape& shape = hand.model->bodies[b].shape;
       const geo::SweepResult s = collision_.sweep(shape, hand.X_from[b], p->X_new[b], params_.sweep);
-      if (s.started_inside) r.started_inside = true;
+      if (s.started_inside) d.started_inside = true;
       toc = std::min(toc, s.toc);
       if (trace_ >= 2) {
         int o0 = -1, o1 = -1;
@@ -690,8 +676,8 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
                static_cast<unsigned long long>(frame), h, b, pen0, o0, pen1, o1, s.toc, s.hit, s.started_inside);
       }
     }
-    if (r.started_inside) ++counters_.started_inside;
-    r.toc = std::min(toc, p->toc);
+    if (d.started_inside) ++counters_.started_inside;
+    d.toc = std::min(toc, p->diag.toc);
     r.ccd_us = usSince(t0);
     // merge: forces to the scene, clip to TOC_min
     t0 = Clock::now();
@@ -718,24 +704,24 @@ void Resolver::resolve(const std::vector<const HandProposal*>& proposals, std::u
       }
       if (free) {
         r.X = hand.X_clip;
-        r.joint_errors = closed.joint_errors;
+        d.joint_errors = closed.joint_errors;
       } else {
         ++counters_.held_back;
         r.X = hand.X_from;
-        r.joint_errors = jointErrors(*hand.model, hand.X_from.data());
-        r.toc = 0.0;
+        d.joint_errors = jointErrors(*hand.model, hand.X_from.data());
+        d.toc = 0.0;
       }
-      r.clipped = true;
+      d.clipped = true;
     } else {
       r.X = p->X_new;
     }
-    if (r.clipped) ++counters_.clipped_steps;
+    if (d.clipped) ++counters_.clipped_steps;
     r.merge_us = usSince(t0);
     if (trace_ >= 1) {
       int o = -1;
       const double pen = penetration(static_cast<int>(h), &o);
       emit(params_, "trace: frame %llu hand %zu toc %.3g gap %.3g contacts %d inside %d pen %.3g object %d scene step %llu\n",
-                   static_cast<unsigned long long>(frame), h, toc, r.joint_errors.gap, r.contacts, r.started_inside, pen, o,
+                   static_cast<unsigned long long>(frame), h, toc, d.joint_errors.gap, d.contacts, d.started_inside, pen, o,
                    static_cast<unsigned long long>(scene_step_));
     }
   }

@@ -115,6 +115,22 @@ struct SolverTimes {
   double contacts_us = 0, assembly_us = 0, solve_us = 0, integrate_us = 0, ccd_us = 0;
 };
 
+/// What one hand's step did, as every report shows it: filled by the solver's step, carried
+/// unchanged to the resolver's result (which adds only what clipping there changed), the
+/// pipeline's frame report, the wire (HandProposal, HandState) and the bench, launch and viewer.
+struct StepDiagnostics {
+  int contacts = 0;               ///< contacts of the step (the most of any round)
+  double kkt = 0.0;               ///< largest KKT residual of its solves
+  SolveStatus status = SolveStatus::Converged;
+  std::uint32_t flags = 0;        ///< StepFlag bits of its rounds
+  JointErrors joint_errors;       ///< of the resulting poses
+  SolverTimes times;              ///< the solver's stages
+  int substeps = 0;               ///< solve -> sweep rounds taken (0: not stepped)
+  double toc = 1.0;               ///< smallest TOC of those rounds (and of the resolver's sweep)
+  bool clipped = false;           ///< some round was clipped (or the resolver clipped it)
+  bool started_inside = false;    ///< a sweep began inside an object
+};
+
 /// solver -> resolver: the constrained step of one cluster, before continuous collision.
 struct HandProposal {
   std::uint64_t frame = 0;
@@ -125,20 +141,11 @@ struct HandProposal {
   bool lifted_start = false;
   std::vector<Pose> X_old;        ///< start of the step (a resolved state)
   std::vector<Pose> X_new;        ///< after the step
-  int contact_count = 0;
   std::vector<ContactLoad> loads;
-  double kkt = 0.0;
-  SolveStatus status = SolveStatus::Converged;
-  std::uint32_t flags = 0;
-  JointErrors joint_errors;       ///< of X_new
-  SolverTimes times;
-  int substeps = 0;               ///< solve -> sweep rounds taken (0: not stepped)
-  double toc = 1.0;               ///< smallest TOC of those rounds
-  bool clipped = false;           ///< some round was clipped
+  StepDiagnostics diag;           ///< of the step X_old -> X_new
   /// X_old -> X_new was swept, round by round, against the scene of scene_frame: a resolver
   /// with the same start and scene would find the same (safe) path and need not sweep again.
   bool swept = false;
-  bool started_inside = false;    ///< a sweep began inside an object
 };
 
 /// resolver -> everyone: the final pose of one cluster for one frame.
@@ -150,20 +157,11 @@ struct HandResult {
   bool tracked = false;
   bool started = false;
   bool lifted_start = false;
-  bool started_inside = false;
   bool loaded = false;            ///< some contact carries force
-  double toc = 1.0;
   std::vector<Pose> X;
-  int contacts = 0;
-  double kkt = 0.0;
-  SolveStatus status = SolveStatus::Converged;
-  std::uint32_t flags = 0;
-  JointErrors joint_errors;
+  StepDiagnostics diag;           ///< the solver's, with the resolver's clipping (toc, clipped, joint errors)
   double force_N = 0.0;
-  SolverTimes solver_times;
   double ccd_us = 0.0, merge_us = 0.0;
-  int substeps = 0;               ///< the solver's rounds this frame
-  bool clipped = false;           ///< clipped this frame (by the solver's rounds or the resolver)
 };
 
 /// A point force on a scene object, in application order.

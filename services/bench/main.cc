@@ -506,13 +506,13 @@ int main(int argc, char** argv) {
       sample.targets = inputs[h].targets;
       sample.has_target = inputs[h].has_target;
       sample.loaded = hr.loaded;
-      sample.clipped = hr.clipped;
-      sample.toc = hr.toc;
-      sample.substeps = hr.substeps;
-      sample.joint_gap = hr.joint_errors.gap;
+      sample.clipped = hr.diag.clipped;
+      sample.toc = hr.diag.toc;
+      sample.substeps = hr.diag.substeps;
+      sample.joint_gap = hr.diag.joint_errors.gap;
       metrics->add(static_cast<int>(h), sample, inputs[h], pipe->resolver().collision());
       if (!hr.started) continue;
-      if (hr.tracked) kkt_max = std::max(kkt_max, hr.kkt);
+      if (hr.tracked) kkt_max = std::max(kkt_max, hr.diag.kkt);
       const HandModel& m = pipe->model(static_cast<int>(h));
       for (size_t b = 0; b < X.size(); ++b) {
         hash.add(X[b]);

@@ -32,6 +32,42 @@ SolveStatus status(std::int32_t s) {
   return s >= 0 && s <= static_cast<std::int32_t>(SolveStatus::NumericalFailure) ? static_cast<SolveStatus>(s)
                                                                                  : SolveStatus::NumericalFailure;
 }
+
+// The step's diagnostics (StepDiagnostics) on the wire: HandProposal and HandState carry the same
+// fields, the contact count and the solver's times under their own names (passed here).
+template <class Msg>
+void putDiagnostics(const StepDiagnostics& d, Msg* out, msg::SolverTimes* times) {
+  out->kkt(d.kkt);
+  out->status(static_cast<std::int32_t>(d.status));
+  out->flags(d.flags);
+  out->joint_gap(d.joint_errors.gap);
+  out->joint_lock(d.joint_errors.lock);
+  out->joint_limit(d.joint_errors.limit);
+  times->contacts_us(d.times.contacts_us);
+  times->assembly_us(d.times.assembly_us);
+  times->solve_us(d.times.solve_us);
+  times->integrate_us(d.times.integrate_us);
+  times->ccd_us(d.times.ccd_us);
+  out->substeps(static_cast<std::uint32_t>(d.substeps));
+  out->toc(d.toc);
+  out->clipped(d.clipped);
+  out->started_inside(d.started_inside);
+}
+template <class Msg>
+StepDiagnostics diagnostics(const Msg& in, const msg::SolverTimes& times, std::uint32_t contacts) {
+  StepDiagnostics d;
+  d.contacts = static_cast<int>(contacts);
+  d.kkt = in.kkt();
+  d.status = status(in.status());
+  d.flags = in.flags();
+  d.joint_errors = JointErrors{in.joint_gap(), in.joint_lock(), in.joint_limit()};
+  d.times = SolverTimes{times.contacts_us(), times.assembly_us(), times.solve_us(), times.integrate_us(), times.ccd_us()};
+  d.substeps = static_cast<int>(in.substeps());
+  d.toc = in.toc();
+  d.clipped = in.clipped();
+  d.started_inside = in.started_inside();
+  return d;
+}
 }  // namespace
 
 std::int64_t nowNs() {
@@ -85,7 +121,7 @@ void toWire(const HandProposal& p, msg::HandProposal* out) {
   for (std::size_t i = 0; i < p.X_old.size(); ++i) toWire(p.X_old[i], &out->x_old()[i]);
   out->x_new().resize(p.X_new.size());
   for (std::size_t i = 0; i < p.X_new.size(); ++i) toWire(p.X_new[i], &out->x_new()[i]);
-  out->contact_count(static_cast<std::uint32_t>(p.contact_count));
+  out->contact_count(static_cast<std::uint32_t>(p.diag.contacts));
   const std::size_t n = std::min(p.loads.size(), kMaxLoads);
   out->loads_truncated(p.loads.size() > kMaxLoads);
   out->loads().resize(n);
@@ -97,22 +133,8 @@ void toWire(const HandProposal& p, msg::HandProposal* out) {
     put(p.loads[i].n_W, &c.n());
     c.lambda(p.loads[i].lambda);
   }
-  out->kkt(p.kkt);
-  out->status(static_cast<std::int32_t>(p.status));
-  out->flags(p.flags);
-  out->joint_gap(p.joint_errors.gap);
-  out->joint_lock(p.joint_errors.lock);
-  out->joint_limit(p.joint_errors.limit);
-  out->times().contacts_us(p.times.contacts_us);
-  out->times().assembly_us(p.times.assembly_us);
-  out->times().solve_us(p.times.solve_us);
-  out->times().integrate_us(p.times.integrate_us);
-  out->times().ccd_us(p.times.ccd_us);
-  out->substeps(static_cast<std::uint32_t>(p.substeps));
-  out->toc(p.toc);
-  out->clipped(p.clipped);
+  putDiagnostics(p.diag, out, &out->times());
   out->swept(p.swept);
-  out->started_inside(p.started_inside);
 }
 
 bool fromWire(const msg::HandProposal& in, std::size_t bodies, int objects, HandProposal* out, std::string* why) {
@@ -124,7 +146,6 @@ bool fromWire(const msg::HandProposal& in, std::size_t bodies, int objects, Hand
   out->lifted_start = in.lifted_start();
   if (!poses(in.x_old(), bodies, "x_old", &out->X_old, why)) return false;
   if (!poses(in.x_new(), bodies, "x_new", &out->X_new, why)) return false;
-  out->contact_count = static_cast<int>(in.contact_count());
   out->loads.resize(in.loads().size());
   for (std::size_t i = 0; i < in.loads().size(); ++i) {
     const msg::ContactLoad& c = in.loads()[i];
@@ -139,17 +160,8 @@ bool fromWire(const msg::HandProposal& in, std::size_t bodies, int objects, Hand
     if (!finite(l.p_W) || !finite(l.n_W) || !std::isfinite(l.lambda))
       return fail(why, "loads[" + std::to_string(i) + "]: not finite");
   }
-  out->kkt = in.kkt();
-  out->status = status(in.status());
-  out->flags = in.flags();
-  out->joint_errors = JointErrors{in.joint_gap(), in.joint_lock(), in.joint_limit()};
-  out->times = SolverTimes{in.times().contacts_us(), in.times().assembly_us(), in.times().solve_us(),
-                           in.times().integrate_us(), in.times().ccd_us()};
-  out->substeps = static_cast<int>(in.substeps());
-  out->toc = in.toc();
-  out->clipped = in.clipped();
+  out->diag = diagnostics(in, in.times(), in.contact_count());
   out->swept = in.swept();
-  out->started_inside = in.started_inside();
   return true;
 }
 
@@ -161,30 +173,16 @@ void toWire(const HandResult& r, const HandModel& model, bool stale, msg::HandSt
   out->lifted_start(r.lifted_start);
   out->stale(stale);
   out->held(!r.present);
-  out->started_inside(r.started_inside);
   out->loaded(r.loaded);
-  out->toc(r.toc);
   out->poses().resize(r.X.size());
   for (std::size_t i = 0; i < r.X.size(); ++i) toWire(r.X[i], &out->poses()[i]);
   out->shapes().resize(model.bodies.size());
   for (std::size_t i = 0; i < model.bodies.size(); ++i) toWire(model.bodies[i].shape, &out->shapes()[i]);
-  out->contacts(static_cast<std::uint32_t>(r.contacts));
-  out->kkt(r.kkt);
-  out->status(static_cast<std::int32_t>(r.status));
-  out->flags(r.flags);
-  out->joint_gap(r.joint_errors.gap);
-  out->joint_lock(r.joint_errors.lock);
-  out->joint_limit(r.joint_errors.limit);
+  out->contacts(static_cast<std::uint32_t>(r.diag.contacts));
+  putDiagnostics(r.diag, out, &out->solver_times());
   out->force_n(r.force_N);
-  out->solver_times().contacts_us(r.solver_times.contacts_us);
-  out->solver_times().assembly_us(r.solver_times.assembly_us);
-  out->solver_times().solve_us(r.solver_times.solve_us);
-  out->solver_times().integrate_us(r.solver_times.integrate_us);
   out->ccd_us(r.ccd_us);
   out->merge_us(r.merge_us);
-  out->solver_times().ccd_us(r.solver_times.ccd_us);
-  out->substeps(static_cast<std::uint32_t>(r.substeps));
-  out->clipped(r.clipped);
 }
 
 bool fromWire(const msg::HandState& in, std::size_t bodies, HandResult* out, std::string* why) {
@@ -195,23 +193,12 @@ bool fromWire(const msg::HandState& in, std::size_t bodies, HandResult* out, std
   out->tracked = in.tracked();
   out->started = in.started();
   out->lifted_start = in.lifted_start();
-  out->started_inside = in.started_inside();
   out->loaded = in.loaded();
-  out->toc = in.toc();
   if (!poses(in.poses(), bodies, "poses", &out->X, why)) return false;
-  out->contacts = static_cast<int>(in.contacts());
-  out->kkt = in.kkt();
-  out->status = status(in.status());
-  out->flags = in.flags();
-  out->joint_errors = JointErrors{in.joint_gap(), in.joint_lock(), in.joint_limit()};
+  out->diag = diagnostics(in, in.solver_times(), in.contacts());
   out->force_N = in.force_n();
-  out->solver_times = SolverTimes{in.solver_times().contacts_us(), in.solver_times().assembly_us(),
-                                  in.solver_times().solve_us(), in.solver_times().integrate_us(),
-                                  in.solver_times().ccd_us()};
   out->ccd_us = in.ccd_us();
   out->merge_us = in.merge_us();
-  out->substeps = static_cast<int>(in.substeps());
-  out->clipped = in.clipped();
   return true;
 }
 

@@ -53,7 +53,7 @@ GodRun runPipeline(const std::vector<leap::TrackerFrame>& frames, double rate, c
     r.poses.emplace_back();
     r.contact.emplace_back();
     for (int h = 0; h < 2; ++h)
-      r.contact.back().push_back(rep.hands[static_cast<size_t>(h)].contacts > 0 || rep.hands[static_cast<size_t>(h)].toc < 1.0 ||
+      r.contact.back().push_back(rep.hands[static_cast<size_t>(h)].diag.contacts > 0 || rep.hands[static_cast<size_t>(h)].diag.toc < 1.0 ||
                                  rep.hands[static_cast<size_t>(h)].loaded);
     for (int h = 0; h < 2; ++h) {
       r.poses.back().push_back(pipe.started(h) ? pipe.poses(h) : std::vector<Pose>());

@@ -279,7 +279,7 @@ TEST(Pipeline, ResolverSweepsAgainAProposalOfAnotherSceneStateOfTheSameFrame) {
   resolver.resolve({&p2}, 2);
   EXPECT_EQ(resolver.counters().reswept, 1u);
   EXPECT_EQ(resolver.counters().trusted, 1u);
-  EXPECT_TRUE(resolver.result(0).clipped);
+  EXPECT_TRUE(resolver.result(0).diag.clipped);
   EXPECT_EQ(resolver.result(0).scene_step, 2u);
   EXPECT_LE(resolver.penetration(0), 1e-9) << "the face moved to x = -0.04: the sphere stops at or before -0.05";
   EXPECT_LT(resolver.result(0).X[0].p.x(), -0.05 + 1e-6);

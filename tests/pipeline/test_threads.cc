@@ -73,8 +73,8 @@ RunResult runTwoHands(int threads, int body_threads = 1) {
     for (int hand = 0; hand < 2; ++hand) {
       for (const Pose& P : pipe.poses(hand)) res.hash = mixPose(res.hash, P);
       const HandResult& r = pipe.result(hand);
-      res.hash = mix(mix(mix(res.hash, r.force_N), r.toc), static_cast<double>(r.contacts));
-      res.loads += r.contacts;
+      res.hash = mix(mix(mix(res.hash, r.force_N), r.diag.toc), static_cast<double>(r.diag.contacts));
+      res.loads += r.diag.contacts;
     }
   }
   return res;

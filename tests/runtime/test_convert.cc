@@ -56,12 +56,12 @@ TEST(Convert, ProposalRoundTripIsBitExactAndChecked) {
     p.X_old.push_back(oddPose(b));
     p.X_new.push_back(oddPose(b + 50));
   }
-  p.contact_count = 9;
+  p.diag.contacts = 9;
   p.loads.push_back(ContactLoad{3, 2, Vec3(0.1, 0.2, 1.0 / 3.0), Vec3(0, 0.6, 0.8), 1.0 / 7.0});
-  p.kkt = 1e-17;
-  p.status = SolveStatus::Stalled;
-  p.flags = 5;
-  p.joint_errors = JointErrors{1e-11 / 3.0, 2e-9, 0.0};
+  p.diag.kkt = 1e-17;
+  p.diag.status = SolveStatus::Stalled;
+  p.diag.flags = 5;
+  p.diag.joint_errors = JointErrors{1e-11 / 3.0, 2e-9, 0.0};
   msg::HandProposal w;
   svc::toWire(p, &w);
   w.stamp().frame(7);
@@ -73,8 +73,8 @@ TEST(Convert, ProposalRoundTripIsBitExactAndChecked) {
   for (int b = 0; b < 16; ++b) EXPECT_TRUE(sameBits(q.X_old[b], p.X_old[b]) && sameBits(q.X_new[b], p.X_new[b])) << b;
   ASSERT_EQ(q.loads.size(), 1u);
   EXPECT_TRUE(sameBits(q.loads[0].p_W, p.loads[0].p_W) && sameBits(q.loads[0].lambda, p.loads[0].lambda));
-  EXPECT_EQ(q.status, SolveStatus::Stalled);
-  EXPECT_TRUE(sameBits(q.joint_errors.gap, p.joint_errors.gap));
+  EXPECT_EQ(q.diag.status, SolveStatus::Stalled);
+  EXPECT_TRUE(sameBits(q.diag.joint_errors.gap, p.diag.joint_errors.gap));
 
   // Rejections name the field.
   EXPECT_FALSE(svc::fromWire(w, 15, 4, &q, &why));
