@@ -74,7 +74,7 @@ SweepResult directionalSweep(const Shape& shape, const Motion& motion, double mu
 Pose interpolateMotion(const Pose& X0, const Pose& X1, double t) { return Motion(X0, X1).at(t); }
 
 SweepResult sweep(const Shape& shape, const Pose& X_M0, const Pose& X_M1, const MeshBvh& bvh,
-                  const SweepParams& params) {
+                  const SweepParams& params, const SweepStart* start) {
   SweepResult result;
   const double inf = std::numeric_limits<double>::infinity();
   const Motion motion(X_M0, X_M1);
@@ -84,7 +84,18 @@ SweepResult sweep(const Shape& shape, const Pose& X_M0, const Pose& X_M1, const 
   // d(0), looking only as far as the motion can reach (+ the largest possible η).
   NearTriangle nt;
   result.iterations = 1;
-  if (!bvh.closest(shape, X_M0, mu + params.stop_distance, &nt)) {
+  const double window = mu + params.stop_distance;
+  bool near = false;
+  if (start && start->found) {  // the nearest triangle: within the window or nothing is
+    nt = start->nearest;
+    near = !(nt.closest.distance > window);
+    result.iterations = 0;
+  } else if (start && start->range >= window) {  // nothing within a larger window
+    result.iterations = 0;
+  } else {
+    near = bvh.closest(shape, X_M0, window, &nt);
+  }
+  if (!near) {
     result.toc = 1.0;
     result.distance = inf;
     return result;

@@ -60,7 +60,18 @@ struct SweepResult {
 /// Pose at fraction t of the motion X0 → X1 (see above).
 Pose interpolateMotion(const Pose& X0, const Pose& X1, double t);
 
+/// d(0) known already: a MeshBvh::closest query of the same shape at the same X_M0 within
+/// `range` (the contact query's). The sweep uses it instead of its own first query where that
+/// query would give the same answer: when a triangle was found (the nearest one, whatever the
+/// window) or when `range` covers the sweep's window (μ + stop distance).
+struct SweepStart {
+  double range = 0.0;    ///< m: the query's window
+  bool found = false;    ///< a triangle was within it
+  NearTriangle nearest;  ///< the nearest, when found
+};
+
+/// `start` (optional): d(0) as above (nullptr: queried here).
 SweepResult sweep(const Shape& shape, const Pose& X_M0, const Pose& X_M1, const MeshBvh& bvh,
-                  const SweepParams& params = {});
+                  const SweepParams& params = {}, const SweepStart* start = nullptr);
 
 }  // namespace godhand::geo

@@ -221,7 +221,11 @@ bool CollisionWorld::insideGod(const Object& o, const Pose& X_OB) const {
 }
 
 int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body, double reach,
-                             const ContactParams& params, std::vector<Contact>* out) {
+                             const ContactParams& params, std::vector<Contact>* out, QueryStart* start) {
+  if (start) {
+    start->reach = reach;
+    start->objects.clear();
+  }
   const geo::Aabb query_W = geo::shapeAabb(body_shape, X_WB).inflated(reach);
   const double cos_same = std::cos(params.normal_angle);
   const double spread = std::max(params.spread, params.spread_fraction * geo::boundingRadius(body_shape));
@@ -272,7 +276,15 @@ int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body
     for (int k = 0; k < num_samples; ++k) {
       geo::NearTriangle c;
       const Pose X_OS{X_OB * offsets[k], X_OB.q};
-      if (!o.god->closest(samples[k], X_OS, range, &c)) {
+      const bool found = o.god->closest(samples[k], X_OS, range, &c);
+      if (k == 0 && start) {
+        geo::SweepStart s;
+        s.range = range;
+        s.found = found;
+        if (found) s.nearest = c;
+        start->objects.emplace_back(object, s);
+      }
+      if (!found) {
         if (k == 0) break;  // nothing within reach of the whole shape: none of its parts either
         continue;
       }
@@ -344,7 +356,7 @@ int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body
 }
 
 geo::SweepResult CollisionWorld::sweep(const Shape& shape, const Pose& X_W0, const Pose& X_W1,
-                                       const geo::SweepParams& params, int* object_hit) const {
+                                       const geo::SweepParams& params, int* object_hit, const QueryStart* start) const {
   geo::SweepResult best;
   best.distance = kInf;
   if (object_hit) *object_hit = -1;
@@ -357,7 +369,15 @@ geo::SweepResult CollisionWorld::sweep(const Shape& shape, const Pose& X_W0, con
     if (!o.god || !o.box_W.overlaps(swept)) continue;
     const Charge charge(clock, oi);
     const Pose X_WOinv = o.X_WO.inverse();
-    const geo::SweepResult r = geo::sweep(grown(shape, o.skin), X_WOinv * X_W0, X_WOinv * X_W1, *o.god, params);
+    const geo::SweepStart* known = nullptr;
+    geo::SweepStart none;
+    if (start) {
+      none.range = start->reach;  // not listed: nothing within the reach
+      known = &none;
+      for (const auto& e : start->objects)
+        if (e.first == object) known = &e.second;
+    }
+    const geo::SweepResult r = geo::sweep(grown(shape, o.skin), X_WOinv * X_W0, X_WOinv * X_W1, *o.god, params, known);
     total_iterations += r.iterations;
     if (r.started_inside) {
       // Inside: no time of contact to find (resolved by push-out contacts). It may recede or

@@ -94,15 +94,26 @@ class CollisionWorld {
   const Pose& objectPose(int object) const { return objects_[static_cast<size_t>(object)].X_WO; }
   const geo::Aabb& objectBox(int object) const { return objects_[static_cast<size_t>(object)].box_W; }
 
+  /// What a contact query found of the whole shape, for a sweep that starts at the same pose
+  /// (its d(0), geo::SweepStart): per object queried, the nearest triangle within the query's
+  /// range; every object not listed has nothing within `reach` of the shape.
+  struct QueryStart {
+    double reach = 0.0;
+    std::vector<std::pair<int, geo::SweepStart>> objects;
+  };
+
   /// Appends the thinned contacts of God object `body` (shape at X_WB) with every object within
   /// `reach` (m). Keys identify (object, triangle, body) for warm starts. Returns the number added.
+  /// `start` (optional) receives what the query found for a sweep from X_WB (QueryStart).
   int contacts(const Shape& shape, const Pose& X_WB, int body, double reach, const ContactParams& params,
-               std::vector<Contact>* out);
+               std::vector<Contact>* out, QueryStart* start = nullptr);
 
   /// Time of contact of the motion X_W0 → X_W1 against every object it can reach (objects held
   /// at their current poses). `object_hit` (optional) receives the object that limits it, or −1.
+  /// `start` (optional): a contact query's QueryStart at exactly X_W0 with the objects where they
+  /// are now; each object's sweep then takes its d(0) from it (the same answer, one query fewer).
   geo::SweepResult sweep(const Shape& shape, const Pose& X_W0, const Pose& X_W1, const geo::SweepParams& params,
-                         int* object_hit = nullptr) const;
+                         int* object_hit = nullptr, const QueryStart* start = nullptr) const;
 
   /// Exact penetration depth (≥ 0, m) against the reference meshes; `object` gets the deepest.
   double penetration(const Shape& shape, const Pose& X_WB, int* object = nullptr) const;

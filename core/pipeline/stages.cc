@@ -1,6 +1,7 @@
 #include "pipeline/stages.h"
 
 #include <algorithm>
+#include <cstring>
 #include <cstdarg>
 #include <chrono>
 #include <cmath>
@@ -108,6 +109,8 @@ HandSolver::HandSolver(const Scene& scene, const HandModel& model, const Pipelin
   reclose_toc_.assign(model.bodies.size(), 1.0);
   clear_reach_.assign(model.bodies.size(), -1.0);
   X_clear_.assign(model.bodies.size(), Pose());
+  query_start_.resize(model.bodies.size());
+  start_valid_.assign(model.bodies.size(), 0);
   stepper_->reserve(per);
   contacts_.reserve(static_cast<size_t>(per));
   proposal_.loads.reserve(static_cast<size_t>(per));
@@ -147,6 +150,7 @@ void HandSolver::setScene(const SceneSnapshot& snapshot) {
   for (auto& w : slot_worlds_) applySnapshot(*w, snapshot);
   scene_frame_ = snapshot.frame;
   scene_step_ = snapshot.step;
+  std::fill(start_valid_.begin(), start_valid_.end(), 0);  // the objects may have moved
 }
 
 void HandSolver::adopt(const HandResult& result) {
@@ -267,10 +271,11 @@ void HandSolver::generateContacts(const HandInput& in) {
     if (!blocked_[b]) cp.shell = 0.0;
     std::vector<Contact>& out = body_contacts_[b];
     out.clear();
-    const int added = world.contacts(shape, X[b], static_cast<int>(b), reach, cp, &out);
+    const int added = world.contacts(shape, X[b], static_cast<int>(b), reach, cp, &out, &query_start_[b]);
     // Nothing within `reach` of the body here: a certificate for the rest of this step.
     clear_reach_[b] = added == 0 ? reach : -1.0;
     X_clear_[b] = X[b];
+    start_valid_[b] = 1;
   }, busy);
   contacts_.clear();
   for (const std::vector<Contact>& c : body_contacts_) contacts_.insert(contacts_.end(), c.begin(), c.end());
@@ -286,6 +291,15 @@ bool HandSolver::clearOf(size_t b, const Pose& X_a, const Pose& X_b, double room
   return clear_reach_[b] - moved > room;
 }
 
+const CollisionWorld::QueryStart* HandSolver::startAt(size_t b, const Pose& X_from) const {
+  if (!start_valid_[b]) return nullptr;
+  const Pose& X = X_clear_[b];
+  // Bit for bit the query's pose (the sweep's own first query would be made at exactly it).
+  const bool same = std::memcmp(X.p.data(), X_from.p.data(), sizeof(double) * 3) == 0 &&
+                    std::memcmp(X.q.coeffs().data(), X_from.q.coeffs().data(), sizeof(double) * 4) == 0;
+  return same ? &query_start_[b] : nullptr;
+}
+
 void HandSolver::sweepBodies(const std::vector<Pose>& X_from, const std::vector<Pose>& X_to) {
   int busy = 0;
   for (size_t b = 0; b < model_.bodies.size(); ++b) {
@@ -293,7 +307,9 @@ void HandSolver::sweepBodies(const std::vector<Pose>& X_from, const std::vector<
     busy += 1 - certified_[b];
   }
   forEachBody([&](size_t b, CollisionWorld& world) {
-    body_sweeps_[b] = certified_[b] ? geo::SweepResult{} : world.sweep(model_.bodies[b].shape, X_from[b], X_to[b], params_.sweep);
+    body_sweeps_[b] = certified_[b] ? geo::SweepResult{}
+                                    : world.sweep(model_.bodies[b].shape, X_from[b], X_to[b], params_.sweep, nullptr,
+                                                  startAt(b, X_from[b]));
   }, busy);
 }
 

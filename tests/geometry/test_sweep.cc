@@ -302,6 +302,45 @@ void runRandomMotions(const char* name, const MeshBvh& bvh, int count, unsigned 
   EXPECT_GT(st.hits, count / 8);  // the motion mix really exercises contact
 }
 
+// d(0) handed over from a contact query (SweepStart) changes nothing but the work: on random
+// motions near the bunny, with the start queried at a range below, at and above the sweep's own
+// window (found, or nothing within a range that covers the window), the result equals the
+// sweep's own (toc, hit, inside, distance bit for bit); a start that cannot answer (nothing
+// within a smaller range) is not used.
+TEST(Sweep, AHandedOverStartGivesTheSameResult) {
+  Rng rng(4242);
+  const MeshBvh& bvh = bunny();
+  SweepParams params;
+  params.exact_distance = false;  // as the pipeline sweeps
+  int used = 0, hits = 0;
+  for (int i = 0; i < 600 / kMotionDivisor; ++i) {
+    const Shape s = randomShape(rng, i);
+    Pose X0, X1;
+    randomMotion(rng, bvh.mesh(), MotionSpec{}, &X0, &X1);
+    const SweepResult own = sweep(s, X0, X1, bvh, params);
+    const double mu = (X1.p - X0.p).norm() + logRotation(X1.q * X0.q.conjugate()).norm() * boundingRadius(s);
+    const double window = mu + params.stop_distance;
+    for (const double range : {0.25 * window, window, 4.0 * window + 0.01}) {
+      SweepStart start;
+      start.range = range;
+      start.found = bvh.closest(s, X0, range, &start.nearest);
+      const SweepResult r = sweep(s, X0, X1, bvh, params, &start);
+      ASSERT_EQ(r.toc, own.toc) << i << " range " << range;
+      ASSERT_EQ(r.hit, own.hit) << i;
+      ASSERT_EQ(r.started_inside, own.started_inside) << i;
+      ASSERT_TRUE(r.distance == own.distance || (std::isnan(r.distance) && std::isnan(own.distance))) << i;
+      const bool answers = start.found || range >= window;
+      // One query fewer when it answered (the handed-over one), the same count when it could not.
+      EXPECT_EQ(r.iterations, own.iterations - (answers ? 1 : 0)) << i;
+      used += answers ? 1 : 0;
+    }
+    hits += own.hit ? 1 : 0;
+  }
+  std::printf("[figure] handed-over starts used %d, hits %d\n", used, hits);
+  EXPECT_GT(hits, 10);
+  EXPECT_GT(used, 100);
+}
+
 TEST(Sweep, InterpolateMotionEndpointsAndMotionBound) {
   Rng rng(20);
   for (int i = 0; i < 200; ++i) {
