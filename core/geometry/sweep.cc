@@ -118,6 +118,9 @@ SweepResult sweep(const Shape& shape, const Pose& X_M0, const Pose& X_M1, const 
   // and stop there for good, whichever way it moves.
   const double eta = std::min(params.stop_distance, std::max(params.min_stop_distance, 0.5 * d));
   SweepParams local = params;
+  // A handed-over d(0) counts against the iteration cap as the query it replaces: the same steps,
+  // the same (conservative) TOC where the cap is reached.
+  if (result.iterations == 0) local.max_iterations = params.max_iterations - 1;
   local.tolerance = std::min(params.tolerance, std::max(0.0, 0.5 * (d - eta)));
   if (params.directional) return directionalSweep(shape, motion, mu, d, nt.triangle, eta, bvh, local, result);
   double t = 0.0;
@@ -133,7 +136,7 @@ SweepResult sweep(const Shape& shape, const Pose& X_M0, const Pose& X_M1, const 
       result.distance = d;
       return result;
     }
-    if (result.iterations >= params.max_iterations) {
+    if (result.iterations >= local.max_iterations) {
       // Out of iterations: what has been verified so far (conservative), reported as a hit
       // so that the caller stops there.
       result.hit = true;

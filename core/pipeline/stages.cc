@@ -110,6 +110,7 @@ HandSolver::HandSolver(const Scene& scene, const HandModel& model, const Pipelin
   clear_reach_.assign(model.bodies.size(), -1.0);
   X_clear_.assign(model.bodies.size(), Pose());
   query_start_.resize(model.bodies.size());
+  X_query_.assign(model.bodies.size(), Pose());
   start_valid_.assign(model.bodies.size(), 0);
   stepper_->reserve(per);
   contacts_.reserve(static_cast<size_t>(per));
@@ -275,6 +276,7 @@ void HandSolver::generateContacts(const HandInput& in) {
     // Nothing within `reach` of the body here: a certificate for the rest of this step.
     clear_reach_[b] = added == 0 ? reach : -1.0;
     X_clear_[b] = X[b];
+    X_query_[b] = X[b];
     start_valid_[b] = 1;
   }, busy);
   contacts_.clear();
@@ -293,7 +295,7 @@ bool HandSolver::clearOf(size_t b, const Pose& X_a, const Pose& X_b, double room
 
 const CollisionWorld::QueryStart* HandSolver::startAt(size_t b, const Pose& X_from) const {
   if (!start_valid_[b]) return nullptr;
-  const Pose& X = X_clear_[b];
+  const Pose& X = X_query_[b];
   // Bit for bit the query's pose (the sweep's own first query would be made at exactly it).
   const bool same = std::memcmp(X.p.data(), X_from.p.data(), sizeof(double) * 3) == 0 &&
                     std::memcmp(X.q.coeffs().data(), X_from.q.coeffs().data(), sizeof(double) * 4) == 0;
@@ -368,7 +370,8 @@ JointErrors HandSolver::clip(double toc_min) {
   auto sweepRecloseOf = [&](size_t b, const Pose& X_b) {
     const geo::SweepResult s = clearOf(b, X_clip_[b], X_b, sweepRoom())
                                    ? geo::SweepResult{}
-                                   : collision_.sweep(model_.bodies[b].shape, X_clip_[b], X_b, params_.sweep);
+                                   : collision_.sweep(model_.bodies[b].shape, X_clip_[b], X_b, params_.sweep, nullptr,
+                                                      startAt(b, X_clip_[b]));
     countSweep(s);
     return s;
   };
@@ -391,7 +394,9 @@ JointErrors HandSolver::clip(double toc_min) {
       if (certified_[b]) return;  // nothing within reach there
       ContactParams cp = params_.contacts;
       if (!blocked_[b]) cp.shell = 0.0;
-      world.contacts(model_.bodies[b].shape, X[b], static_cast<int>(b), params_.contact_reach, cp, &out);
+      world.contacts(model_.bodies[b].shape, X[b], static_cast<int>(b), params_.contact_reach, cp, &out, &query_start_[b]);
+      X_query_[b] = X[b];
+      start_valid_[b] = 1;
     }, busy);
     clip_contacts_.clear();
     for (const std::vector<Contact>& c : body_contacts_) clip_contacts_.insert(clip_contacts_.end(), c.begin(), c.end());

@@ -315,9 +315,10 @@ class HandSolver {
   // round's contact query), so motions that stay within that room need no sweep (clearOf).
   std::vector<double> clear_reach_;
   std::vector<Pose> X_clear_;
-  // Per body: what that query found of the whole shape (d(0) of a sweep from X_clear_, valid
-  // until the scene moves: start_valid_).
+  // Per body: what its last contact query (the round's, or a re-closing's) found of the whole
+  // shape at X_query_: d(0) of a sweep from there, valid until the scene moves (start_valid_).
   std::vector<CollisionWorld::QueryStart> query_start_;
+  std::vector<Pose> X_query_;
   std::vector<unsigned char> start_valid_;
   /// Body b's QueryStart for a sweep from X_from, or nullptr (another pose or scene).
   const CollisionWorld::QueryStart* startAt(size_t b, const Pose& X_from) const;

@@ -305,15 +305,17 @@ void runRandomMotions(const char* name, const MeshBvh& bvh, int count, unsigned 
 // d(0) handed over from a contact query (SweepStart) changes nothing but the work: on random
 // motions near the bunny, with the start queried at a range below, at and above the sweep's own
 // window (found, or nothing within a range that covers the window), the result equals the
-// sweep's own (toc, hit, inside, distance bit for bit); a start that cannot answer (nothing
-// within a smaller range) is not used.
+// sweep's own (toc, hit, inside, distance bit for bit), also where the iteration cap ends it (the
+// handed-over query counts against the cap); a start that cannot answer (nothing within a
+// smaller range) is not used.
 TEST(Sweep, AHandedOverStartGivesTheSameResult) {
   Rng rng(4242);
   const MeshBvh& bvh = bunny();
   SweepParams params;
   params.exact_distance = false;  // as the pipeline sweeps
-  int used = 0, hits = 0;
+  int used = 0, hits = 0, capped = 0;
   for (int i = 0; i < 600 / kMotionDivisor; ++i) {
+    params.max_iterations = i % 2 ? 100 : 3;
     const Shape s = randomShape(rng, i);
     Pose X0, X1;
     randomMotion(rng, bvh.mesh(), MotionSpec{}, &X0, &X1);
@@ -328,6 +330,7 @@ TEST(Sweep, AHandedOverStartGivesTheSameResult) {
       ASSERT_EQ(r.toc, own.toc) << i << " range " << range;
       ASSERT_EQ(r.hit, own.hit) << i;
       ASSERT_EQ(r.started_inside, own.started_inside) << i;
+      ASSERT_EQ(r.capped, own.capped) << i;
       ASSERT_TRUE(r.distance == own.distance || (std::isnan(r.distance) && std::isnan(own.distance))) << i;
       const bool answers = start.found || range >= window;
       // One query fewer when it answered (the handed-over one), the same count when it could not.
@@ -335,9 +338,11 @@ TEST(Sweep, AHandedOverStartGivesTheSameResult) {
       used += answers ? 1 : 0;
     }
     hits += own.hit ? 1 : 0;
+    capped += own.capped ? 1 : 0;
   }
-  std::printf("[figure] handed-over starts used %d, hits %d\n", used, hits);
+  std::printf("[figure] handed-over starts used %d, hits %d, capped %d\n", used, hits, capped);
   EXPECT_GT(hits, 10);
+  EXPECT_GT(capped, 5);
   EXPECT_GT(used, 100);
 }
 
