@@ -10,6 +10,92 @@ namespace godhand {
 namespace {
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr int kShellSample = 15;  ///< sample id of shell candidates (in the contact key)
+constexpr int kPatchSample = 9;   ///< sample ids 9 … 14: the corners of a box face's patch
+constexpr int kMaxPatch = 6;
+
+/// A box face lying against a mesh touches it along a patch or a line (a face, or an edge of a
+/// coarse rod), and the closest point gives one row there: the box can tilt about that point
+/// into the surface (seen: a palm flat on a thin octagonal rod turned about its one row each
+/// round, the sweep refused every round's motion and the hand froze). The patch: the nearest
+/// triangle projected onto the box face that faces the contact (its normal within 20° of the
+/// contact's), clipped by the face's rectangle; each corner (at most kMaxPatch) becomes a
+/// candidate at its distance from the triangle's plane, for a triangle within 45° of the face
+/// (≥ its distance to the triangle where it projects outside it: a row that asks no less than
+/// the surface), unless it lies within `spread` of the closest point (no lever against a tilt
+/// there: a fine mesh's small triangles add nothing). Frame M of the mesh throughout.
+int facePatch(const Shape& box, const Pose& X_MB, const geo::NearTriangle& c, const geo::TriangleMesh& mesh,
+              double reach, double spread, double cos_same, geo::NearTriangle* out) {
+  const double kCosFace = 0.9396926207859084;   // cos 20°
+  const double kCosPlane = 0.7071067811865476;  // cos 45°
+  const Vec3 v0 = mesh.vertex(c.triangle, 0), v1 = mesh.vertex(c.triangle, 1), v2 = mesh.vertex(c.triangle, 2);
+  Vec3 n_T = (v1 - v0).cross(v2 - v0);
+  const double len = n_T.norm();
+  if (!(len > 0.0)) return 0;
+  n_T /= len;
+  if (n_T.dot(c.closest.n) < 0.0) n_T = -n_T;
+  const Mat3 R = X_MB.q.toRotationMatrix();
+  const Vec3 n_B = R.transpose() * c.closest.n;
+  int j = 0;
+  n_B.cwiseAbs().maxCoeff(&j);
+  if (std::abs(n_B[j]) < kCosFace) return 0;  // the contact is at an edge or corner of the box
+  const double s = n_B[j] > 0.0 ? -1.0 : 1.0;  // the face whose outward normal is -n
+  if (-s * (R.transpose() * n_T)[j] < kCosPlane) return 0;  // the triangle too steep to the face
+  const int u = (j + 1) % 3, w = (j + 2) % 3;
+  const Vec3& h = box.half_extents;
+  // The triangle in the face's coordinates (u, w), clipped by |u| <= h_u, |w| <= h_w.
+  double poly[2][12][2];
+  int count = 3;
+  const Vec3 verts[3] = {v0, v1, v2};
+  for (int k = 0; k < 3; ++k) {
+    const Vec3 t = R.transpose() * (verts[k] - X_MB.p);
+    poly[0][k][0] = t[u];
+    poly[0][k][1] = t[w];
+  }
+  int cur = 0;
+  for (int edge = 0; edge < 4 && count > 0; ++edge) {
+    const int axis = edge / 2;
+    const double sign = edge % 2 ? -1.0 : 1.0, lim = axis == 0 ? h[u] : h[w];
+    auto inside = [&](const double* p) { return sign * p[axis] <= lim; };
+    int next = 0;
+    for (int k = 0; k < count; ++k) {
+      const double* a = poly[cur][k];
+      const double* b = poly[cur][(k + 1) % count];
+      const bool ia = inside(a), ib = inside(b);
+      if (ia) {
+        poly[1 - cur][next][0] = a[0];
+        poly[1 - cur][next++][1] = a[1];
+      }
+      if (ia != ib) {
+        const double t = (sign * lim - a[axis]) / (b[axis] - a[axis]);
+        poly[1 - cur][next][0] = a[0] + t * (b[0] - a[0]);
+        poly[1 - cur][next++][1] = a[1] + t * (b[1] - a[1]);
+      }
+    }
+    count = next;
+    cur = 1 - cur;
+  }
+  int added = 0;
+  for (int k = 0; k < count && added < kMaxPatch; ++k) {
+    Vec3 P_B = Vec3::Zero();
+    P_B[j] = s * h[j];
+    P_B[u] = poly[cur][k][0];
+    P_B[w] = poly[cur][k][1];
+    const Vec3 P = X_MB * P_B;
+    const double d = n_T.dot(P - v0);
+    if (!(d >= 0.0) || d > reach) continue;  // crossing the plane there: left to the other rows
+    // Near the closest point only a row along another normal (an edge contact's face) adds a
+    // constraint; a row along the same normal there is no lever against a tilt.
+    if ((P - c.closest.p_shape).squaredNorm() < spread * spread && n_T.dot(c.closest.n) > cos_same) continue;
+    geo::NearTriangle& o = out[added++];
+    o.triangle = c.triangle;
+    o.closest.distance = d;
+    o.closest.core_distance = d;  // a box's core is the box
+    o.closest.p_shape = P;
+    o.closest.p_triangle = P - d * n_T;
+    o.closest.n = n_T;
+  }
+  return added;
+}
 
 std::uint64_t contactKey(int object, int triangle, int body, int sample) {
   const std::uint64_t id = (static_cast<std::uint64_t>(object) << 44) ^
@@ -292,6 +378,14 @@ int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body
       sample_.push_back(k);
     }
     if (near_.empty()) continue;
+    if (!inside && shape.type == ShapeType::Box && sample_[0] == 0) {
+      geo::NearTriangle patch[kMaxPatch];
+      const int np = facePatch(shape, X_OB, near_[0], o.god->mesh(), range, spread, cos_same, patch);
+      for (int i = 0; i < np; ++i) {
+        near_.push_back(patch[i]);
+        sample_.push_back(kPatchSample + i);
+      }
+    }
     if (!inside && params.shell > 0.0) {
       double nearest = kInf;
       for (const geo::NearTriangle& c : near_) nearest = std::min(nearest, c.closest.distance);

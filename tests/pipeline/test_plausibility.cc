@@ -112,6 +112,47 @@ TEST(Plausibility, BoxSlidesAndTurnsAboutATangentialAxisOnAPlane) {
   EXPECT_LT(worst_follow, 1e-3) << "the box did not follow its free target along the plane";
 }
 
+// A palm-sized box lying on a coarse octagonal rod (on one of its edges, and turned 22.5° about
+// the axis: on one of its flat sides) touches it along a line; the closest point alone is one row,
+// about which the box tilts into the rod (the hand froze on such a rod). The contacts now span
+// the line: rows near both ends of the box along the rod (span ≥ 80 % of the box's length), and
+// none asks the surface for more room than there is (each row's distance ≤ its point's exact
+// distance to the mesh, from a point query of the BVH).
+TEST(Plausibility, ABoxOnACoarseRodGetsRowsAlongTheWholeLine) {
+  const Vec3 half(0.042, 0.047, 0.013);
+  for (const double roll : {0.0, 22.5 * M_PI / 180.0}) {
+    // The rod's axis is world y (its local z turned about x), rolled about y.
+    const Quat q = Quat(Eigen::AngleAxisd(roll, Vec3::UnitY())) * Quat(Eigen::AngleAxisd(0.5 * M_PI, Vec3::UnitX()));
+    Scene scene = sceneOf({meshObject("rod", cylinderMesh(0.007, 0.1, 8), at(0, 0, 0, q))});
+    const geo::TriangleMesh& mesh = scene.objects[0].god->mesh();
+    double top = -1.0;
+    for (int t = 0; t < mesh.triangleCount(); ++t)
+      for (int k = 0; k < 3; ++k) top = std::max(top, (q * mesh.vertex(t, k)).z());
+    Shape box;
+    box.type = ShapeType::Box;
+    box.half_extents = half;
+    const Pose X_WB{Vec3(0.0, 0.0, top + half.z() + 2e-5), Quat::Identity()};
+    CollisionWorld world(scene);
+    std::vector<Contact> contacts;
+    world.contacts(box, X_WB, 0, 0.003, ContactParams{}, &contacts);
+    ASSERT_FALSE(contacts.empty());
+    double y_min = 1.0, y_max = -1.0;
+    Shape point;
+    point.type = ShapeType::Sphere;
+    point.radius = 0.0;
+    for (const Contact& c : contacts) {
+      y_min = std::min(y_min, c.p_W.y());
+      y_max = std::max(y_max, c.p_W.y());
+      const double exact = world.clearance(point, Pose{c.p_W, Quat::Identity()}, 0.05);
+      EXPECT_LE(c.distance, exact + 1e-9) << "roll " << roll;
+      EXPECT_GE(c.distance, 0.0);
+    }
+    std::printf("[figure] roll %.3f rad: %zu rows spanning %.4f m of the %.4f m box along the rod\n", roll,
+                contacts.size(), y_max - y_min, 2.0 * half.y());
+    EXPECT_GE(y_max - y_min, 0.8 * 2.0 * half.y()) << "roll " << roll;
+  }
+}
+
 // A capsule rolls around a cylinder with its target 2 mm inside it: the God capsule stays outside
 // the true cylinder (its axis distance checked at both core ends and the middle) and keeps up
 // with the target's angle.
