@@ -49,6 +49,8 @@ class QpProblem {
   void setRigidMass(int body, double mass, const Mat3& R_WB, const Vec3& inertia_B);
   Vec6& unconstrained(int body) { return zu_[static_cast<size_t>(body)]; }
 
+  /// Drops every row, keeping the masses and z_u (a problem assembled again with other rows).
+  void clearRows() { rows_.clear(); }
   /// Appends a row; blocks for body1 are ignored when body1 < 0.
   Row& addRow(RowType type, int body0, const Vec6& J0, int body1, const Vec6& J1, double c, std::uint64_t key);
   /// Computes W, b and A_kk of every row. Call once after the last addRow().

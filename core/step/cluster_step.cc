@@ -202,19 +202,24 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
   report_.limit_rows = addLimitRows(qp_, model_, X_W_.data(), qp_.unconstrainedData(), params_.rows);
   contact_row_.resize(static_cast<size_t>(nc));
   lambda_contacts_.resize(static_cast<size_t>(nc));
-  for (int i = 0; i < nc; ++i) {
-    contact_row_[static_cast<size_t>(i)] = -1;
-    lambda_contacts_[static_cast<size_t>(i)] = 0.0;
-    Contact c = in.contacts[i];
-    if (!validContact(c, n)) {
-      ++report_.rejected_contacts;
-      continue;
+  auto addContacts = [&]() {
+    report_.contact_rows = 0;
+    report_.rejected_contacts = 0;
+    for (int i = 0; i < nc; ++i) {
+      contact_row_[static_cast<size_t>(i)] = -1;
+      lambda_contacts_[static_cast<size_t>(i)] = 0.0;
+      Contact c = in.contacts[i];
+      if (!validContact(c, n)) {
+        ++report_.rejected_contacts;
+        continue;
+      }
+      c.n_W /= c.n_W.norm();
+      contact_row_[static_cast<size_t>(i)] = qp_.numRows();
+      addContactRow(qp_, c, X_W_[static_cast<size_t>(c.body)], params_.rows);
+      ++report_.contact_rows;
     }
-    c.n_W /= c.n_W.norm();
-    contact_row_[static_cast<size_t>(i)] = qp_.numRows();
-    addContactRow(qp_, c, X_W_[static_cast<size_t>(c.body)], params_.rows);
-    ++report_.contact_rows;
-  }
+  };
+  addContacts();
   qp_.finalize();
   report_.rows = qp_.numRows();
   if (warm_lambda_.size() < static_cast<size_t>(report_.rows)) {  // only when rows exceed all seen
@@ -263,6 +268,27 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
         report_.flags |= kFlagSolverInexact;
         ++counters_.inexact_solves;
       }
+    }
+  }
+  // A stalled solve (violated rows that could not enter the passive set) whose rows include joint
+  // limits: seen on coarse rods, where the palm's contact rows (A_kk ~ 10-100) meet the fingers'
+  // limit rows (A_kk ~ 1e5-1e7); the stalled solution turned the palm by 0.3 rad with the
+  // coupling scaled to 1e-3, the sweep refused it round after round and the hand froze. Solved
+  // again without the limit rows (cold: the rows are renumbered); the projection then restores
+  // any violated limit. Flagged and counted.
+  if (report_.solve.status == SolveStatus::Stalled && report_.limit_rows > 0) {
+    qp_.clearRows();
+    addJointRows(qp_, model_, X_W_.data(), params_.rows);
+    report_.limit_rows = 0;
+    addContacts();
+    qp_.finalize();
+    report_.rows = qp_.numRows();
+    report_.solve = params_.solver == SolverKind::Exact ? exact_.solve(qp_, sol_, nullptr) : pgs_.solve(qp_, sol_, nullptr);
+    report_.flags |= kFlagLimitsToProjection;
+    ++counters_.limits_to_projection;
+    if (report_.solve.status == SolveStatus::IterationLimit || report_.solve.status == SolveStatus::Stalled) {
+      report_.flags |= kFlagSolverInexact;
+      ++counters_.inexact_solves;
     }
   }
   if (report_.rejected_targets) report_.flags |= kFlagRejectedTarget;

@@ -75,6 +75,9 @@ enum StepFlag : std::uint32_t {
   kFlagSolverInexact = 1u << 3,    ///< iteration limit / stalled: result used, KKT not met
   kFlagStateKept = 1u << 4,        ///< the step produced non-finite poses, or opened the joints: previous state kept
   kFlagProjectionIncomplete = 1u << 5,  ///< joint error above tolerance after projection
+  /// The solve with the joint-limit rows stalled: solved again without them, the limits left to
+  /// the projection (which restores violated ones).
+  kFlagLimitsToProjection = 1u << 6,
 };
 
 /// Joints closed well enough to be a hand: gap and lock within 1000 × the projection tolerance
@@ -153,6 +156,7 @@ struct StepReport {
 struct StepCounters {
   std::uint64_t steps = 0, rejected_targets = 0, rejected_contacts = 0, solver_failures = 0,
                 inexact_solves = 0, states_kept = 0, shortened_steps = 0;
+  std::uint64_t limits_to_projection = 0;  ///< steps with kFlagLimitsToProjection
 };
 
 struct StepInput {
