@@ -84,16 +84,16 @@ SweepResult sweep(const Shape& shape, const Pose& X_M0, const Pose& X_M1, const 
   // d(0), looking only as far as the motion can reach (+ the largest possible η).
   NearTriangle nt;
   result.iterations = 1;
-  const double window = mu + params.stop_distance;
+  const double first_window = mu + params.stop_distance;
   bool near = false;
   if (start && start->found) {  // the nearest triangle: within the window or nothing is
     nt = start->nearest;
-    near = !(nt.closest.distance > window);
+    near = !(nt.closest.distance > first_window);
     result.iterations = 0;
-  } else if (start && start->range >= window) {  // nothing within a larger window
+  } else if (start && start->range >= first_window) {  // nothing within a larger window
     result.iterations = 0;
   } else {
-    near = bvh.closest(shape, X_M0, window, &nt);
+    near = bvh.closest(shape, X_M0, first_window, &nt);
   }
   if (!near) {
     result.toc = 1.0;
