@@ -21,8 +21,9 @@ constexpr int kMaxPatch = 6;
 /// contact's), clipped by the face's rectangle; each corner (at most kMaxPatch) becomes a
 /// candidate at its distance from the triangle's plane, for a triangle within 45° of the face
 /// (≥ its distance to the triangle where it projects outside it: a row that asks no less than
-/// the surface), unless it lies within `spread` of the closest point (no lever against a tilt
-/// there: a fine mesh's small triangles add nothing). Frame M of the mesh throughout.
+/// the surface), unless it lies within `spread` of the closest point with the closest point's
+/// normal (within `cos_same`): no lever against a tilt there, and the thinning would drop it (a
+/// fine mesh's small triangles add nothing; an edge contact's faces do). Frame M throughout.
 int facePatch(const Shape& box, const Pose& X_MB, const geo::NearTriangle& c, const geo::TriangleMesh& mesh,
               double reach, double spread, double cos_same, geo::NearTriangle* out) {
   const double kCosFace = 0.9396926207859084;   // cos 20°

@@ -1,7 +1,6 @@
 #include "pipeline/stages.h"
 
 #include <algorithm>
-#include <cstring>
 #include <cstdarg>
 #include <chrono>
 #include <cmath>
@@ -48,6 +47,9 @@ PipelineParams prepared(PipelineParams p) {
   p.step.rows.dt = p.step.dt;
   return p;
 }
+
+/// The same pose, number for number.
+bool samePose(const Pose& a, const Pose& b) { return a.p == b.p && a.q.coeffs() == b.q.coeffs(); }
 
 void applySnapshot(CollisionWorld& world, const SceneSnapshot& s) {
   for (const ObjectMotion& o : s.objects)
@@ -295,11 +297,8 @@ bool HandSolver::clearOf(size_t b, const Pose& X_a, const Pose& X_b, double room
 
 const CollisionWorld::QueryStart* HandSolver::startAt(size_t b, const Pose& X_from) const {
   if (!start_valid_[b]) return nullptr;
-  const Pose& X = X_query_[b];
-  // Bit for bit the query's pose (the sweep's own first query would be made at exactly it).
-  const bool same = std::memcmp(X.p.data(), X_from.p.data(), sizeof(double) * 3) == 0 &&
-                    std::memcmp(X.q.coeffs().data(), X_from.q.coeffs().data(), sizeof(double) * 4) == 0;
-  return same ? &query_start_[b] : nullptr;
+  // Exactly the query's pose (the sweep's own first query would be made at it).
+  return samePose(X_query_[b], X_from) ? &query_start_[b] : nullptr;
 }
 
 void HandSolver::sweepBodies(const std::vector<Pose>& X_from, const std::vector<Pose>& X_to) {
@@ -584,7 +583,7 @@ namespace {
 bool samePoses(const std::vector<Pose>& a, const std::vector<Pose>& b) {
   if (a.size() != b.size()) return false;
   for (size_t i = 0; i < a.size(); ++i)
-    if (a[i].p != b[i].p || a[i].q.coeffs() != b[i].q.coeffs()) return false;
+    if (!samePose(a[i], b[i])) return false;
   return true;
 }
 }  // namespace
