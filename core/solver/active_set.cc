@@ -53,7 +53,25 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
   // l = L⁻¹ a with a_i = A(P_i, k): column-oriented forward substitution skipping zeros. A(P_i, k)
   // is zero unless the rows share a body: equality rows are found through their bodies, the
   // (few) passive inequality rows are all read.
-  std::fill(x, x + n, 0.0);
+  // x is zero above its first nonzero entry (`first`), and so is its substitution: the loops
+  // below start there. Equality rows appended in postorder share bodies only with their
+  // neighbours, so building the equality block costs its fill, not O(n) per row.
+  auto shares = [&row](const Row& a) {
+    return a.body0 == row.body0 || a.body0 == row.body1 || (a.body1 >= 0 && (a.body1 == row.body0 || a.body1 == row.body1));
+  };
+  int first = n;
+  for (const int body : {row.body0, row.body1}) {
+    if (body < 0) continue;
+    for (int e = eq_start_[static_cast<size_t>(body)]; e < eq_start_[static_cast<size_t>(body) + 1]; ++e) {
+      const int pos = position_[static_cast<size_t>(eq_rows_[static_cast<size_t>(e)])];
+      if (pos >= 0 && pos < n) first = std::min(first, pos);
+    }
+  }
+  // Passive inequality rows (none while the equality block is built) are all read.
+  const int ineq_from = building_equalities_ ? n : n_eq_;
+  for (int i = ineq_from; i < first; ++i)
+    if (shares(p.row(passive_[static_cast<size_t>(i)]))) { first = i; break; }
+  std::fill(x + first, x + n, 0.0);
   for (const int body : {row.body0, row.body1}) {
     if (body < 0) continue;
     for (int e = eq_start_[static_cast<size_t>(body)]; e < eq_start_[static_cast<size_t>(body) + 1]; ++e) {
@@ -62,14 +80,12 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
       if (pos >= 0 && pos < n) x[pos] = p.A(r, k);
     }
   }
-  for (int i = n_eq_; i < n; ++i) {
+  for (int i = std::max(ineq_from, first); i < n; ++i) {
     const Row& a = p.row(passive_[static_cast<size_t>(i)]);
-    const bool shares = a.body0 == row.body0 || a.body0 == row.body1 ||
-                        (a.body1 >= 0 && (a.body1 == row.body0 || a.body1 == row.body1));
-    if (shares) x[i] = p.A(passive_[static_cast<size_t>(i)], k);
+    if (shares(a)) x[i] = p.A(passive_[static_cast<size_t>(i)], k);
   }
   double ll = 0.0;
-  for (int j = 0; j < n; ++j) {
+  for (int j = first; j < n; ++j) {
     if (x[j] == 0.0) continue;
     const double* col = L + static_cast<size_t>(j) * cap;
     x[j] /= col[j];
@@ -84,7 +100,9 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
   if (!(pivot2 > kIllPivot * row.diag)) ill_conditioned_ = true;
   if (!(pivot2 > eps)) pivot2 = eps;  // row (numerically) dependent on P: regularisation pivot
   if (!std::isfinite(pivot2) || !(pivot2 > 0.0)) return false;
-  for (int j = 0; j < n; ++j) {
+  // Row n of the columns before `first` stays past their bounds (never read, zeroed when a
+  // bound grows over it).
+  for (int j = first; j < n; ++j) {
     double* col = L + static_cast<size_t>(j) * cap;
     col[n] = x[j];
     if (x[j] == 0.0) continue;
@@ -97,7 +115,7 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
   if (n_eq_ > 0 || row.type == RowType::Inequality) {
     // The row's share of the forward substitution over the equality columns (see gb_).
     double g = row.b;
-    for (int j = 0; j < n_eq_; ++j)
+    for (int j = first; j < n_eq_; ++j)
       if (yE_[static_cast<size_t>(j)] != 0.0 && x[j] != 0.0) g -= x[j] * yE_[static_cast<size_t>(j)];
     gb_[static_cast<size_t>(n)] = g;
   }
@@ -298,8 +316,10 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
   n_eq_ = 0;  // no gap while the equality block is built
   ill_conditioned_ = false;
   indexEqualities(p);
+  building_equalities_ = true;
   for (int k = 0; k < m; ++k)
     if (!isIneq(k) && !append(p, k)) equality_missing = equality_missing || p.row(k).c != 0.0 || p.row(k).diag != 0.0;
+  building_equalities_ = false;
   n_eq_ = static_cast<int>(passive_.size());
   for (int j = 0; j < n_eq_; ++j) band_[static_cast<size_t>(j)] = std::min(last_[static_cast<size_t>(j)], n_eq_ - 1);
   forwardEqualities(p);

@@ -76,6 +76,7 @@ class ActiveSetSolver {
   // from n_eq_ on are inequalities, which fill it down to last_[j]. The substitutions skip the
   // zeros in between (with contacts they are most of a column).
   int n_eq_ = 0;
+  bool building_equalities_ = false;  // solve() is appending the equality rows (all of P is E)
   std::vector<int> band_;
   // The right-hand side b_P is fixed within a solve, so the forward substitution over the
   // equality columns is done once: yE_ = L_E⁻¹ b_E, and per passive inequality row (by factor
