@@ -63,7 +63,12 @@ class MeshBvh {
 
   /// Generalized winding number at p_M (see above).
   double windingNumber(const Vec3& p_M) const;
-  bool inside(const Vec3& p_M) const { return windingNumber(p_M) > 0.5; }
+  /// Winding number > ½ on a solid; never on a shell (an open surface, e.g. a bowl or a panel,
+  /// whose winding number is no inside/outside vote: it is a thin sheet, touched from either
+  /// side). Meshes are solid unless the scene loader found them open (classifySurface).
+  bool inside(const Vec3& p_M) const { return solid_ && windingNumber(p_M) > 0.5; }
+  bool solid() const { return solid_; }
+  void setSolid(bool solid) { solid_ = solid; }
 
  private:
   struct Node {
@@ -78,6 +83,7 @@ class MeshBvh {
   struct Impl;  ///< build and traversal helpers (bvh.cc)
   TriangleMesh mesh_;
   Aabb bounds_;
+  bool solid_ = true;
   std::vector<Node> nodes_;       ///< depth-first: an inner node's left child follows it
   std::vector<int> order_;  ///< triangle indices, grouped by leaf
   std::vector<Aabb> tri_boxes_;   ///< per triangle, indexed like order_ (leaf-contiguous)

@@ -644,6 +644,35 @@ CollisionWorld::Overlap CollisionWorld::overlapIn(const geo::MeshBvh& mesh, cons
       best.n_W = X_WO.q * (out.norm() > 0.0 ? Vec3(out.normalized()) : Vec3(-e.closest.n));
     }
   }
+  // A shell (an open surface) has no inside, so no point of the body is "inside" it: where the
+  // body's core crosses one of its faces, the depth is how far the body reaches through that
+  // face's plane on its shallower side, h − |s| (h: the body's extent along the normal, s: its
+  // centre's distance from the plane). Exact where the face covers the body's footprint, an
+  // over-estimate near the face's edges (whose own witnesses follow): never less than the truth.
+  if (!mesh.solid()) {
+    tris_.clear();
+    mesh.trianglesOverlapping(geo::shapeAabb(shape, X_OB), &tris_);
+    const Pose X_BO = X_OB.inverse();
+    const Mat3 R_BO = X_BO.q.toRotationMatrix();
+    for (int t : tris_) {
+      const Vec3 v0 = R_BO * mesh.mesh().vertex(t, 0) + X_BO.p, v1 = R_BO * mesh.mesh().vertex(t, 1) + X_BO.p,
+                 v2 = R_BO * mesh.mesh().vertex(t, 2) + X_BO.p;
+      const Vec3 cross = (v1 - v0).cross(v2 - v0);
+      if (!(cross.norm() > 0.0)) continue;
+      Vec3 core_B, tri_B;
+      if (geo::detail::coreTriangle(shape, v0, v1, v2, &core_B, &tri_B) > 0.0) continue;
+      const Vec3 n = cross.normalized();
+      const double s = -n.dot(v0);  // the body origin (0 in B) from the plane
+      double h = r;
+      if (shape.type == ShapeType::Box) h += n.cwiseAbs().dot(shape.half_extents);
+      else if (shape.type == ShapeType::Capsule) h += std::abs(n.z()) * shape.half_length;
+      const double depth = h - std::abs(s);
+      if (depth > best.depth) {
+        best.depth = depth;
+        best.n_W = X_WB.q * Vec3(s >= 0.0 ? n : Vec3(-n));  // from the face towards the body's centre
+      }
+    }
+  }
   // The object's edges inside the body: the deepest point of each. A point deeper than the
   // deepest witness so far lies inside the shape eroded by that depth (exact for boxes, capsules
   // and spheres): only triangles that reach into its box are looked at, none when it is empty.

@@ -167,6 +167,64 @@ double signedVolume(const TriangleMesh& mesh) {
   return v / 6.0;
 }
 
+SurfaceVerdict classifySurface(const geo::MeshBvh& bvh, int samples) {
+  SurfaceVerdict v;
+  const TriangleMesh& mesh = bvh.mesh();
+  const int n = mesh.triangleCount();
+  if (n == 0 || samples <= 0) {
+    v.kind = SurfaceVerdict::Kind::Shell;
+    return v;
+  }
+  const double eps = 1e-6 * bvh.bounds().extent().norm();
+  const int windows = std::min(n, samples);
+  for (int w = 0; w < windows; ++w) {
+    // The largest triangle of this window of the list: its centroid is farthest from its edges.
+    const int lo = static_cast<int>(static_cast<long long>(w) * n / windows);
+    const int hi = static_cast<int>(static_cast<long long>(w + 1) * n / windows);
+    int best = -1;
+    double best_area = 0.0;
+    Vec3 best_normal = Vec3::Zero();
+    for (int t = lo; t < hi; ++t) {
+      const Vec3 a = mesh.vertex(t, 0);
+      const Vec3 cross = (mesh.vertex(t, 1) - a).cross(mesh.vertex(t, 2) - a);
+      const double area = cross.norm();
+      if (area > best_area) {
+        best = t;
+        best_area = area;
+        best_normal = cross / area;
+      }
+    }
+    if (best < 0) continue;
+    const Vec3 c = (mesh.vertex(best, 0) + mesh.vertex(best, 1) + mesh.vertex(best, 2)) / 3.0;
+    const double behind = bvh.windingNumber(c - eps * best_normal), front = bvh.windingNumber(c + eps * best_normal);
+    ++v.samples;
+    const double tol = SurfaceVerdict::kTolerance;
+    if (std::abs(behind - 1.0) <= tol && std::abs(front) <= tol) ++v.outward;
+    if (std::abs(behind) <= tol && std::abs(front + 1.0) <= tol) ++v.inward;
+  }
+  const double need = SurfaceVerdict::kDecided * v.samples;
+  v.kind = v.samples > 0 && v.outward >= need  ? SurfaceVerdict::Kind::Solid
+           : v.samples > 0 && v.inward >= need ? SurfaceVerdict::Kind::Inverted
+                                               : SurfaceVerdict::Kind::Shell;
+  return v;
+}
+
+std::string SurfaceVerdict::describe() const {
+  const std::string of = " of " + std::to_string(samples) + " surface samples";
+  switch (kind) {
+    case Kind::Solid: return "closed solid (" + std::to_string(outward) + of + " inside/outside as oriented)";
+    case Kind::Inverted: return "closed solid with inward-facing triangles (" + std::to_string(inward) + of + "): turned outward";
+    case Kind::Shell: break;
+  }
+  return "open surface (inside/outside decided at " + std::to_string(std::max(outward, inward)) + of +
+         "): a thin shell, touched from either side, no inside";
+}
+
+TriangleMesh flipped(TriangleMesh mesh) {
+  for (Tri& t : mesh.triangles) std::swap(t[1], t[2]);
+  return mesh;
+}
+
 void countEdges(const TriangleMesh& mesh, MeshStats* stats) {
   // Key: (min << 32 | max) << 1 | direction bit; sorted, runs are the uses of one edge.
   std::vector<uint64_t> keys;

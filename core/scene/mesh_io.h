@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "geometry/bvh.h"
 #include "geometry/mesh.h"
 
 namespace godhand {
@@ -79,6 +80,29 @@ geo::Aabb meshBounds(const geo::TriangleMesh& mesh);
 
 /// Σ over triangles of a·(b×c)/6: > 0 for a closed outward-oriented mesh.
 double signedVolume(const geo::TriangleMesh& mesh);
+
+/// Whether the winding number of a mesh decides inside and outside next to its surface: at the
+/// centroids of up to `samples` triangles (every (T/samples)-th, largest-area first within each
+/// stride), the points ε = 1e-6 · (bounding-box diagonal) behind and in front of the face. A closed
+/// outward-facing surface gives w ≈ 1 behind and ≈ 0 in front; one facing inwards ≈ 0 and ≈ −1;
+/// an open surface (a bowl, a panel) gives neither (a bowl's cavity has 0.5 < w < 1: it would
+/// read as inside the bowl). "≈" is within 0.1; small holes leave most samples decided.
+struct SurfaceVerdict {
+  enum class Kind { Solid, Inverted, Shell };
+  int samples = 0;
+  int outward = 0;  ///< samples decided as a closed outward-facing surface
+  int inward = 0;   ///< samples decided as a closed inward-facing surface
+  Kind kind = Kind::Solid;
+  /// Solid: ≥ 90 % outward; Inverted: ≥ 90 % inward; else Shell.
+  static constexpr double kDecided = 0.9;
+  static constexpr double kTolerance = 0.1;
+  /// One phrase for load reports, e.g. "open surface (31 of 256 samples decided): a thin shell".
+  std::string describe() const;
+};
+SurfaceVerdict classifySurface(const geo::MeshBvh& bvh, int samples = 256);
+
+/// The mesh with every triangle's orientation reversed (b and c swapped).
+geo::TriangleMesh flipped(geo::TriangleMesh mesh);
 
 /// Vertex clustering on a uniform grid: every vertex moves to the mean of its cell's vertices,
 /// collapsed and duplicate triangles are dropped. The cell size is searched so that the result

@@ -44,6 +44,9 @@ struct SceneObject {
   double god_skin = 0.0;
   /// What the God side got and why, for reports ("AUTO 1 mm: decimated to 4,949 triangles, ...").
   std::string god_note;
+  /// Mesh objects: how inside and outside were decided (scene/mesh_io.h classifySurface), e.g.
+  /// "open surface (...): a thin shell, touched from either side, no inside". Empty for primitives.
+  std::string surface_note;
   PhysicsShape physics;
   std::string source;                ///< mesh file or primitive description, for messages
   double scale = 1.0;                ///< uniform scale applied to the mesh file

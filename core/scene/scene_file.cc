@@ -62,8 +62,10 @@ std::string bits(double x) {
   return std::to_string(u);
 }
 
-std::shared_ptr<const MeshBvh> makeBvh(TriangleMesh mesh) {
-  return std::make_shared<const MeshBvh>(std::move(mesh));
+std::shared_ptr<const MeshBvh> makeBvh(TriangleMesh mesh, bool solid = true) {
+  auto bvh = std::make_shared<MeshBvh>(std::move(mesh));
+  bvh->setSolid(solid);
+  return bvh;
 }
 
 /// A mesh file at one scale / centring / subdivision: the full-resolution BVH and what the
@@ -75,6 +77,7 @@ struct MeshAsset {
   double scale = 1.0;
   Vec3 translation = Vec3::Zero();
   std::optional<std::vector<Vec3>> hull_points;
+  SurfaceVerdict surface;     ///< of the file's mesh (an inverted one is turned outward here)
   std::map<std::string, std::shared_ptr<const MeshBvh>> god;  ///< by fidelity key
   struct AutoChoice {
     std::shared_ptr<const MeshBvh> god;
@@ -111,7 +114,16 @@ class Cache {
       a.base = translate(std::move(a.base), a.translation);
     }
     a.bounds = meshBounds(a.base);
-    a.full = makeBvh(subdiv > 0 ? subdivide(a.base, subdiv) : a.base);
+    // Inside and outside as the winding number sees them (mesh_io.h): a closed mesh facing
+    // inwards is turned outward, an open surface becomes a shell (no inside).
+    auto full = std::make_shared<MeshBvh>(subdiv > 0 ? subdivide(a.base, subdiv) : a.base);
+    a.surface = classifySurface(*full);
+    if (a.surface.kind == SurfaceVerdict::Kind::Inverted) {
+      a.base = flipped(std::move(a.base));
+      full = std::make_shared<MeshBvh>(subdiv > 0 ? subdivide(a.base, subdiv) : a.base);
+    }
+    full->setSolid(a.surface.kind != SurfaceVerdict::Kind::Shell);
+    a.full = full;
     return assets_.emplace(key, std::move(a)).first->second;
   }
 
@@ -150,7 +162,8 @@ std::shared_ptr<const MeshBvh> godMesh(MeshAsset& a, pb::GodGeometry::Fidelity f
   if (!god) {
     switch (fidelity) {
       case GF::DECIMATED:
-        god = a.full->triangleCount() <= target_triangles ? a.full : makeBvh(decimate(a.full->mesh(), target_triangles));
+        god = a.full->triangleCount() <= target_triangles ? a.full
+                                                          : makeBvh(decimate(a.full->mesh(), target_triangles), a.full->solid());
         break;
       case GF::CONVEX_HULL: god = makeBvh(convexHull(a.base.vertices)); break;
       case GF::PRIMITIVE: god = makeBvh(translate(boxMesh(0.5 * a.bounds.extent()), a.bounds.centre())); break;
@@ -205,7 +218,7 @@ const MeshAsset::AutoChoice& autoGod(MeshAsset& a, double tolerance) {
   };
   bool found = consider(makeBvh(convexHull(a.base.vertices)), "convex hull");
   for (size_t i = 0; !found && i < targets.size(); ++i) {
-    std::shared_ptr<const MeshBvh> d = makeBvh(decimate(full, targets[i]));
+    std::shared_ptr<const MeshBvh> d = makeBvh(decimate(full, targets[i]), a.full->solid());
     if (d->triangleCount() >= n) break;
     found = consider(d, "decimated to " + thousands(d->triangleCount()) + " of " + thousands(n) + " triangles");
   }
@@ -383,6 +396,7 @@ Scene parseScene(const std::string& text, const std::string& source, const std::
           o.scale = a.scale;
           o.translation = a.translation;
           o.reference = a.full;
+          o.surface_note = a.surface.describe();
           if (god_override) {
             setGod(a, *god_override, where("god") + "(the --god-fidelity given instead) ", &o);
           } else if (god_f == GF::AUTO) {
@@ -562,6 +576,7 @@ Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre, const Me
       if (!(extent > 0.0)) throw SceneError("--mesh " + spec.path + ": the mesh has zero extent");
       MeshAsset& a = cache.asset(spec.path, spec.size / extent, true, 0);
       o.reference = a.full;
+      o.surface_note = a.surface.describe();
       setGod(a, spec.god, "--mesh " + spec.path + ": ", &o);
       o.scale = a.scale;
       o.translation = a.translation;

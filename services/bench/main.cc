@@ -334,6 +334,9 @@ int main(int argc, char** argv) {
                         god ? &*god : nullptr);
     }
   } catch (const std::exception& e) { fail(e.what()); }
+  for (const SceneObject& o : scene.objects)  // said at once: it changes what the figures mean
+    if (!o.surface_note.empty() && o.surface_note.rfind("closed solid (", 0) != 0)
+      std::fprintf(stderr, "godhand-bench: note: %s (%s): %s\n", o.id.c_str(), o.source.c_str(), o.surface_note.c_str());
 
   // One cluster per hand side that the recording contains (right first).
   bool has_side[2] = {false, false};  // 0 right, 1 left
@@ -566,6 +569,9 @@ int main(int argc, char** argv) {
                   o.X_WO.p.y(), o.X_WO.p.z());
   for (const SceneObject& o : scene.objects)
     if (!o.god_note.empty()) std::printf("  God side of %s: %s\n", o.id.c_str(), o.god_note.c_str());
+  for (const SceneObject& o : scene.objects)
+    if (!o.surface_note.empty() && o.surface_note.rfind("closed solid (", 0) != 0)
+      std::printf("  surface of %s: %s\n", o.id.c_str(), o.surface_note.c_str());
   std::printf("  step (the in-process frame, every hand and the scene; %d thread%s, %d per hand's bodies): median %.1f us "
               "(%.0f Hz), p99 %.1f us, max %.1f us\n",
               pipe->params().threads, pipe->params().threads == 1 ? "" : "s", pipe->params().body_threads, median, hz,
@@ -687,7 +693,9 @@ int main(int argc, char** argv) {
                          {"god_triangles", o.god ? o.god->triangleCount() : 0},
                          {"reference_triangles", o.reference ? o.reference->triangleCount() : 0},
                          {"god_skin_m", o.god_skin},
-                         {"god_note", o.god_note}});
+                         {"god_note", o.god_note},
+                         {"solid", o.reference ? o.reference->solid() : true},
+                         {"surface_note", o.surface_note}});
       objects.back().update(share);
     }
     j["objects"] = objects;
