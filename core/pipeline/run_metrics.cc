@@ -33,8 +33,14 @@ struct RunMetrics::Hand {
   std::unique_ptr<HandSolver> twin;
   std::uint64_t frame = 0;
   std::vector<double> free_err, model_err, lag, gap;
-  // The last kWindow + 1 frames in which both the God hand and its twin existed (-1: a gap).
-  std::deque<std::pair<std::vector<Pose>, std::vector<Pose>>> window;
+  /// (frame, God poses, twin poses) of the frames of the last kWindow that had both: a frame
+  /// without them (a tracking dropout) does not end a window, its two ends are what is compared
+  /// (as anyone comparing the --poses files of the run and its twin would).
+  struct Seen {
+    long long frame;
+    std::vector<Pose> god, twin;
+  };
+  std::deque<Seen> window;
   std::vector<Pose> X_prev;  // God poses of the previous frame (empty: none)
 };
 
@@ -79,7 +85,6 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
   }
   if (!s.started || !s.X) {
     hand.X_prev.clear();
-    hand.window.clear();
     return;
   }
   ++sum.started;
@@ -126,18 +131,18 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
     const double e = maxBodyDistance(X, *twin) - depth;
     hand.lag.push_back(e);
     if (e > MetricThresholds::kLagAbove) ++sum.lag_above_5mm;
-    hand.window.emplace_back(X, *twin);
-    if (hand.window.size() > static_cast<size_t>(MetricThresholds::kWindow) + 1) hand.window.pop_front();
-    if (hand.window.size() == static_cast<size_t>(MetricThresholds::kWindow) + 1) {
-      const auto& a = hand.window.front();
-      const auto& z = hand.window.back();
-      if (maxBodyDistance(z.second, a.second) > MetricThresholds::kTwinMoves) {
+  }
+  if (twin) {
+    const long long now = static_cast<long long>(hand.frame);
+    while (!hand.window.empty() && hand.window.front().frame < now - MetricThresholds::kWindow) hand.window.pop_front();
+    if (!hand.window.empty() && hand.window.front().frame == now - MetricThresholds::kWindow) {
+      const Hand::Seen& a = hand.window.front();
+      if (maxBodyDistance(*twin, a.twin) > MetricThresholds::kTwinMoves) {
         ++sum.moving_windows;
-        if (maxBodyDistance(z.first, a.first) < MetricThresholds::kGodStill) ++sum.frozen_windows;
+        if (maxBodyDistance(X, a.god) < MetricThresholds::kGodStill) ++sum.frozen_windows;
       }
     }
-  } else {
-    hand.window.clear();
+    hand.window.push_back(Hand::Seen{now, X, *twin});
   }
   hand.X_prev = X;
 }
