@@ -47,6 +47,9 @@ struct SceneObject {
   /// Mesh objects: how inside and outside were decided (scene/mesh_io.h classifySurface), e.g.
   /// "open surface (...): a thin shell, touched from either side, no inside". Empty for primitives.
   std::string surface_note;
+  /// The mesh is not what it said: open (a shell) or facing inwards (turned outward). Programs
+  /// print surface_note when set.
+  bool surface_changed = false;
   PhysicsShape physics;
   std::string source;                ///< mesh file or primitive description, for messages
   double scale = 1.0;                ///< uniform scale applied to the mesh file

@@ -397,6 +397,7 @@ Scene parseScene(const std::string& text, const std::string& source, const std::
           o.translation = a.translation;
           o.reference = a.full;
           o.surface_note = a.surface.describe();
+          o.surface_changed = a.surface.kind != SurfaceVerdict::Kind::Solid;
           if (god_override) {
             setGod(a, *god_override, where("god") + "(the --god-fidelity given instead) ", &o);
           } else if (god_f == GF::AUTO) {
@@ -577,6 +578,7 @@ Scene meshScene(const std::vector<MeshSpec>& specs, const Vec3& centre, const Me
       MeshAsset& a = cache.asset(spec.path, spec.size / extent, true, 0);
       o.reference = a.full;
       o.surface_note = a.surface.describe();
+      o.surface_changed = a.surface.kind != SurfaceVerdict::Kind::Solid;
       setGod(a, spec.god, "--mesh " + spec.path + ": ", &o);
       o.scale = a.scale;
       o.translation = a.translation;

@@ -335,7 +335,7 @@ int main(int argc, char** argv) {
     }
   } catch (const std::exception& e) { fail(e.what()); }
   for (const SceneObject& o : scene.objects)  // said at once: it changes what the figures mean
-    if (!o.surface_note.empty() && o.surface_note.rfind("closed solid (", 0) != 0)
+    if (o.surface_changed)
       std::fprintf(stderr, "godhand-bench: note: %s (%s): %s\n", o.id.c_str(), o.source.c_str(), o.surface_note.c_str());
 
   // One cluster per hand side that the recording contains (right first).
@@ -570,7 +570,7 @@ int main(int argc, char** argv) {
   for (const SceneObject& o : scene.objects)
     if (!o.god_note.empty()) std::printf("  God side of %s: %s\n", o.id.c_str(), o.god_note.c_str());
   for (const SceneObject& o : scene.objects)
-    if (!o.surface_note.empty() && o.surface_note.rfind("closed solid (", 0) != 0)
+    if (o.surface_changed)
       std::printf("  surface of %s: %s\n", o.id.c_str(), o.surface_note.c_str());
   std::printf("  step (the in-process frame, every hand and the scene; %d thread%s, %d per hand's bodies): median %.1f us "
               "(%.0f Hz), p99 %.1f us, max %.1f us\n",

@@ -132,7 +132,7 @@ int main(int argc, char** argv) {
 
   if (!resume_note.empty()) std::fprintf(stderr, "scene: %s\n", resume_note.c_str());
   for (const SceneObject& o : scene.objects)  // an open or inverted mesh: what it was taken for
-    if (!o.surface_note.empty() && o.surface_note.rfind("closed solid (", 0) != 0)
+    if (o.surface_changed)
       std::fprintf(stderr, "scene: %s (%s): %s\n", o.id.c_str(), o.source.c_str(), o.surface_note.c_str());
 
   msg::SceneDescription description;
