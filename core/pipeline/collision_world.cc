@@ -18,16 +18,28 @@ constexpr int kMaxPatch = 6;
 /// into the surface (seen: a palm flat on a thin octagonal rod turned about its one row each
 /// round, the sweep refused every round's motion and the hand froze). The patch: the nearest
 /// triangle projected onto the box face that faces the contact (its normal within 20° of the
-/// contact's), clipped by the face's rectangle; each corner (at most kMaxPatch) becomes a
-/// candidate at its distance from the triangle's plane, for a triangle within 45° of the face
-/// (≥ its distance to the triangle where it projects outside it: a row that asks no less than
-/// the surface), unless it lies within `spread` of the closest point with the closest point's
-/// normal (within `cos_same`): no lever against a tilt there, and the thinning would drop it (a
-/// fine mesh's small triangles add nothing; an edge contact's faces do). Frame M throughout.
+/// contact's), clipped by the face's rectangle, for a triangle within 45° of the face. Each
+/// corner (at most kMaxPatch) becomes a candidate with the normal and distance of the two
+/// features that meet there (the clipped polygon's edges lie on triangle edges or face sides):
+///   - a triangle vertex over the face: the face's normal, the vertex's height above the face;
+///   - a face corner under the triangle: the triangle's normal, the corner's distance to its plane;
+///   - a triangle edge crossing a side of the face: the two edges' common normal (e_T × e_B,
+///     towards the box), their distance along it (where they are parallel, as for a vertex).
+/// Each is the exact first-order gap of its feature pair. (One normal for every corner, the
+/// triangle's, was wrong where the triangle meets the face at an angle: an octagonal rod's edge
+/// lying on a palm, its faces 17° and 28° off the palm's; rows along the triangle's normal at the
+/// line's ends let the palm slide along the triangle's plane into the edge, seen as a hand frozen
+/// for 82 frames: every round's motion entered the rod at the end the closest point did not hold.)
+/// A corner within `spread` of the closest point with the closest point's normal (within
+/// `cos_same`) adds no row: no lever against a tilt there, and the thinning would drop it (a
+/// fine mesh's small triangles add nothing; an edge contact's faces do). A corner where the
+/// features cross (negative gap) is left to the other rows. Frame M throughout.
 int facePatch(const Shape& box, const Pose& X_MB, const geo::NearTriangle& c, const geo::TriangleMesh& mesh,
-              double reach, double spread, double cos_same, geo::NearTriangle* out) {
+              const std::vector<std::uint8_t>& crease, double reach, double spread, double cos_same,
+              geo::NearTriangle* out) {
   const double kCosFace = 0.9396926207859084;   // cos 20°
   const double kCosPlane = 0.7071067811865476;  // cos 45°
+  const double kSinParallel = 0.01;             // edges closer than ~0.6° to parallel: no common normal
   const Vec3 v0 = mesh.vertex(c.triangle, 0), v1 = mesh.vertex(c.triangle, 1), v2 = mesh.vertex(c.triangle, 2);
   Vec3 n_T = (v1 - v0).cross(v2 - v0);
   const double len = n_T.norm();
@@ -40,22 +52,29 @@ int facePatch(const Shape& box, const Pose& X_MB, const geo::NearTriangle& c, co
   n_B.cwiseAbs().maxCoeff(&j);
   if (std::abs(n_B[j]) < kCosFace) return 0;  // the contact is at an edge or corner of the box
   const double s = n_B[j] > 0.0 ? -1.0 : 1.0;  // the face whose outward normal is -n
-  if (-s * (R.transpose() * n_T)[j] < kCosPlane) return 0;  // the triangle too steep to the face
+  const Vec3 n_F = -s * R.col(j);              // the face's normal, from the mesh towards the box
+  const double cos_tilt = n_T.dot(n_F);
+  if (cos_tilt < kCosPlane) return 0;  // the triangle too steep to the face
   const int u = (j + 1) % 3, w = (j + 2) % 3;
   const Vec3& h = box.half_extents;
-  // The triangle in the face's coordinates (u, w), clipped by |u| <= h_u, |w| <= h_w.
+  // The triangle in the face's coordinates (u, w), clipped by |u| <= h_u, |w| <= h_w. Each
+  // polygon edge k (from vertex k to k + 1) carries the feature it lies on: 0 … 2 the triangle's
+  // edge from vertex e to e + 1, 3 + side for a side of the face (side / 2: the clipped axis,
+  // 0 = u, 1 = w).
   double poly[2][12][2];
+  int tag[2][12];
   int count = 3;
   const Vec3 verts[3] = {v0, v1, v2};
   for (int k = 0; k < 3; ++k) {
     const Vec3 t = R.transpose() * (verts[k] - X_MB.p);
     poly[0][k][0] = t[u];
     poly[0][k][1] = t[w];
+    tag[0][k] = k;
   }
   int cur = 0;
-  for (int edge = 0; edge < 4 && count > 0; ++edge) {
-    const int axis = edge / 2;
-    const double sign = edge % 2 ? -1.0 : 1.0, lim = axis == 0 ? h[u] : h[w];
+  for (int side = 0; side < 4 && count > 0; ++side) {
+    const int axis = side / 2;
+    const double sign = side % 2 ? -1.0 : 1.0, lim = axis == 0 ? h[u] : h[w];
     auto inside = [&](const double* p) { return sign * p[axis] <= lim; };
     int next = 0;
     for (int k = 0; k < count; ++k) {
@@ -64,12 +83,15 @@ int facePatch(const Shape& box, const Pose& X_MB, const geo::NearTriangle& c, co
       const bool ia = inside(a), ib = inside(b);
       if (ia) {
         poly[1 - cur][next][0] = a[0];
-        poly[1 - cur][next++][1] = a[1];
+        poly[1 - cur][next][1] = a[1];
+        tag[1 - cur][next++] = tag[cur][k];
       }
       if (ia != ib) {
         const double t = (sign * lim - a[axis]) / (b[axis] - a[axis]);
         poly[1 - cur][next][0] = a[0] + t * (b[0] - a[0]);
-        poly[1 - cur][next++][1] = a[1] + t * (b[1] - a[1]);
+        poly[1 - cur][next][1] = a[1] + t * (b[1] - a[1]);
+        // Leaving: the polygon goes on along this side; entering: along the edge it crossed.
+        tag[1 - cur][next++] = ia ? 3 + side : tag[cur][k];
       }
     }
     count = next;
@@ -82,18 +104,41 @@ int facePatch(const Shape& box, const Pose& X_MB, const geo::NearTriangle& c, co
     P_B[u] = poly[cur][k][0];
     P_B[w] = poly[cur][k][1];
     const Vec3 P = X_MB * P_B;
-    const double d = n_T.dot(P - v0);
-    if (!(d >= 0.0) || d > reach) continue;  // crossing the plane there: left to the other rows
+    // The triangle's point over P along the face's normal is P − h_F n_F.
+    const double d_T = n_T.dot(P - v0), h_F = d_T / cos_tilt;
+    const int in = tag[cur][(k + count - 1) % count], on = tag[cur][k];
+    Vec3 n = n_F;
+    double d = h_F;
+    if (in >= 3 && on >= 3) {  // a corner of the face under the triangle
+      n = n_T;
+      d = d_T;
+    } else if ((in >= 3 || on >= 3) && !crease[static_cast<size_t>(3 * c.triangle + (in < 3 ? in : on))]) {
+      n = n_T;  // a triangle edge inside a flat region (a box face's diagonal): the plane's row
+      d = d_T;
+    } else if (in >= 3 || on >= 3) {  // a crease edge of the mesh across a side of the face
+      const int e = in < 3 ? in : on, side = (in >= 3 ? in : on) - 3;
+      const Vec3 e_T = verts[(e + 1) % 3] - verts[e];
+      const Vec3 e_B = R.col(side / 2 == 0 ? w : u);  // a side clipping u runs along w
+      Vec3 m = e_T.cross(e_B);
+      const double mn = m.norm();
+      if (mn > kSinParallel * e_T.norm()) {  // else parallel: the edge's height over the face
+        m /= mn;
+        if (m.dot(n_F) < 0.0) m = -m;
+        n = m;
+        d = h_F * m.dot(n_F);
+      }
+    }  // else a triangle vertex over the face: its height along the face's normal
+    if (!(d >= 0.0) || d > reach) continue;  // crossing there: left to the other rows
     // Near the closest point only a row along another normal (an edge contact's face) adds a
     // constraint; a row along the same normal there is no lever against a tilt.
-    if ((P - c.closest.p_shape).squaredNorm() < spread * spread && n_T.dot(c.closest.n) > cos_same) continue;
+    if ((P - c.closest.p_shape).squaredNorm() < spread * spread && n.dot(c.closest.n) > cos_same) continue;
     geo::NearTriangle& o = out[added++];
     o.triangle = c.triangle;
     o.closest.distance = d;
     o.closest.core_distance = d;  // a box's core is the box
     o.closest.p_shape = P;
-    o.closest.p_triangle = P - d * n_T;
-    o.closest.n = n_T;
+    o.closest.p_triangle = P - d * n;
+    o.closest.n = n;
   }
   return added;
 }
@@ -124,6 +169,42 @@ geo::Aabb sweptBox(const Vec3& a, const Vec3& b, double r) {
 }
 }  // namespace
 
+const std::vector<std::uint8_t>& CollisionWorld::creases(int object) const {
+  std::vector<std::uint8_t>& out = creases_[static_cast<size_t>(object)];
+  const geo::TriangleMesh& mesh = objects_[static_cast<size_t>(object)].god->mesh();
+  const size_t nt = static_cast<size_t>(mesh.triangleCount());
+  if (out.size() == 3 * nt) return out;
+  // Edge e of triangle t (from corner e to e + 1) is a crease unless exactly one other triangle
+  // shares it and lies in the same plane (normals within kFlatCos).
+  constexpr double kFlatCos = 0.9998476951563913;  // cos 1°
+  std::vector<std::array<std::uint64_t, 2>> keys;  // (vertex pair, 3 t + e)
+  keys.reserve(3 * nt);
+  for (size_t t = 0; t < nt; ++t)
+    for (int e = 0; e < 3; ++e) {
+      const std::uint64_t a = static_cast<std::uint32_t>(mesh.triangles[t][static_cast<size_t>(e)]);
+      const std::uint64_t b = static_cast<std::uint32_t>(mesh.triangles[t][static_cast<size_t>((e + 1) % 3)]);
+      keys.push_back({std::min(a, b) << 32 | std::max(a, b), 3 * t + static_cast<size_t>(e)});
+    }
+  std::sort(keys.begin(), keys.end());
+  auto normal = [&mesh](size_t t) {
+    const int ti = static_cast<int>(t);
+    const Vec3 n = (mesh.vertex(ti, 1) - mesh.vertex(ti, 0)).cross(mesh.vertex(ti, 2) - mesh.vertex(ti, 0));
+    const double len = n.norm();
+    return len > 0.0 ? Vec3(n / len) : Vec3::Zero();
+  };
+  out.assign(3 * nt, 1);
+  for (size_t i = 0; i < keys.size();) {
+    size_t j = i + 1;
+    while (j < keys.size() && keys[j][0] == keys[i][0]) ++j;
+    if (j - i == 2 && normal(keys[i][1] / 3).dot(normal(keys[i + 1][1] / 3)) > kFlatCos) {
+      out[keys[i][1]] = 0;
+      out[keys[i + 1][1]] = 0;
+    }
+    i = j;
+  }
+  return out;
+}
+
 CollisionWorld::CollisionWorld(const Scene& scene) {
   objects_.reserve(scene.objects.size());
   union_box_.resize(scene.objects.size());
@@ -132,6 +213,7 @@ CollisionWorld::CollisionWorld(const Scene& scene) {
   is_moved_.assign(scene.objects.size(), 0);
   moved_.reserve(scene.objects.size());
   costs_.resize(scene.objects.size());
+  creases_.resize(scene.objects.size());
   for (const SceneObject& so : scene.objects) {
     Object o;
     o.god = so.god.get();
@@ -381,7 +463,7 @@ int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body
     if (near_.empty()) continue;
     if (!inside && shape.type == ShapeType::Box && sample_[0] == 0) {
       geo::NearTriangle patch[kMaxPatch];
-      const int np = facePatch(shape, X_OB, near_[0], o.god->mesh(), range, spread, cos_same, patch);
+      const int np = facePatch(shape, X_OB, near_[0], o.god->mesh(), creases(object), range, spread, cos_same, patch);
       for (int i = 0; i < np; ++i) {
         near_.push_back(patch[i]);
         sample_.push_back(kPatchSample + i);
