@@ -246,8 +246,33 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
     report_.flags |= kFlagSolverInexact;
     ++counters_.inexact_solves;
   }
+  // A stalled solve (violated rows that could not enter the passive set) whose rows include joint
+  // limits: seen on coarse rods, where the palm's contact rows (A_kk ~ 10-100) meet the fingers'
+  // limit rows (A_kk ~ 1e5-1e7); the stalled solution turned the palm by 0.3 rad with the
+  // coupling scaled to 1e-3, the sweep refused it round after round and the hand froze. Solved
+  // again without the limit rows (cold: the rows are renumbered); the projection then restores
+  // any violated limit. Flagged and counted. Before the rotation caps below: a stalled
+  // solution's rotation is no measure of the motion (seen: a palm across a square bar, capped to
+  // a scale of 1.5e-4 from the stalled solution and frozen for 157 frames).
+  auto dropLimitsIfStalled = [&] {
+    if (!(report_.solve.status == SolveStatus::Stalled && report_.limit_rows > 0)) return;
+    qp_.clearRows();
+    addJointRows(qp_, model_, X_W_.data(), params_.rows);
+    report_.limit_rows = 0;
+    addContacts();
+    qp_.finalize();
+    report_.rows = qp_.numRows();
+    report_.solve = params_.solver == SolverKind::Exact ? exact_.solve(qp_, sol_, nullptr) : pgs_.solve(qp_, sol_, nullptr);
+    report_.flags |= kFlagLimitsToProjection;
+    ++counters_.limits_to_projection;
+    if (report_.solve.status == SolveStatus::IterationLimit || report_.solve.status == SolveStatus::Stalled) {
+      report_.flags |= kFlagSolverInexact;
+      ++counters_.inexact_solves;
+    }
+  };
+  dropLimitsIfStalled();
   // Rotation caps on the solution (StepInput::rotation_cap): scale every coupling and solve
-  // again, warm-started from this solution's active set.
+  // again, warm-started from this solution's active set (and without the limits if that stalls).
   if (in.rotation_cap && report_.solve.status != SolveStatus::NumericalFailure) {
     double scale = 1.0;
     for (int b = 0; b < n; ++b) {
@@ -268,27 +293,7 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
         report_.flags |= kFlagSolverInexact;
         ++counters_.inexact_solves;
       }
-    }
-  }
-  // A stalled solve (violated rows that could not enter the passive set) whose rows include joint
-  // limits: seen on coarse rods, where the palm's contact rows (A_kk ~ 10-100) meet the fingers'
-  // limit rows (A_kk ~ 1e5-1e7); the stalled solution turned the palm by 0.3 rad with the
-  // coupling scaled to 1e-3, the sweep refused it round after round and the hand froze. Solved
-  // again without the limit rows (cold: the rows are renumbered); the projection then restores
-  // any violated limit. Flagged and counted.
-  if (report_.solve.status == SolveStatus::Stalled && report_.limit_rows > 0) {
-    qp_.clearRows();
-    addJointRows(qp_, model_, X_W_.data(), params_.rows);
-    report_.limit_rows = 0;
-    addContacts();
-    qp_.finalize();
-    report_.rows = qp_.numRows();
-    report_.solve = params_.solver == SolverKind::Exact ? exact_.solve(qp_, sol_, nullptr) : pgs_.solve(qp_, sol_, nullptr);
-    report_.flags |= kFlagLimitsToProjection;
-    ++counters_.limits_to_projection;
-    if (report_.solve.status == SolveStatus::IterationLimit || report_.solve.status == SolveStatus::Stalled) {
-      report_.flags |= kFlagSolverInexact;
-      ++counters_.inexact_solves;
+      dropLimitsIfStalled();
     }
   }
   if (report_.rejected_targets) report_.flags |= kFlagRejectedTarget;
