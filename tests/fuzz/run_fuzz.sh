@@ -20,7 +20,7 @@ FLAGS=(-std=c++17 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recov
 declare -A SOURCES=(
   [dtrack]="$SRC/tests/fuzz/fuzz_dtrack.cc $SRC/bridges/dtrack/dtrack.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
   [leap]="$SRC/tests/fuzz/fuzz_leap.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
-  [mesh]="$SRC/tests/fuzz/fuzz_mesh.cc $SRC/core/scene/mesh_io.cc $SRC/core/geometry/mesh.cc"
+  [mesh]="$SRC/tests/fuzz/fuzz_mesh.cc $SRC/core/scene/mesh_io.cc $SRC/core/geometry/mesh.cc $SRC/core/geometry/bvh.cc $SRC/core/geometry/distance.cc $SRC/core/math/pose.cc"
   [text]="$SRC/tests/fuzz/fuzz_text.cc $SRC/core/scene/scene_file.cc $SRC/core/scene/mesh_io.cc $SRC/core/geometry/mesh.cc $SRC/core/geometry/bvh.cc $SRC/core/geometry/distance.cc $SRC/core/model/hand_model.cc $SRC/core/model/text_proto.cc $SRC/core/math/pose.cc $SRC/services/common/lab_config.cc $SRC/services/common/sweep_spec.cc $SRC/services/common/files.cc $GEN/hand_model.pb.cc $GEN/scene.pb.cc $GEN/lab.pb.cc $GEN/sweep.pb.cc"
   [jsonl]="$SRC/tests/fuzz/fuzz_jsonl.cc $SRC/bridges/skeleton/jsonl.cc $SRC/bridges/skeleton/skeleton.cc $SRC/bridges/skeleton/aria.cc $SRC/bridges/synthetic/synthetic.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
 )
