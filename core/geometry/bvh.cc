@@ -8,6 +8,10 @@
 #include <stdexcept>
 #include <string>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace godhand::geo {
 namespace {
 
@@ -215,6 +219,90 @@ struct CoreM {
   }
 };
 
+#if defined(__SSE2__)
+/// Two doubles, one per child of a BVH node: the bounds of both children evaluated at once
+/// (SSE2). Every lane does the arithmetic of CoreM's scalar code in the same order (sums of
+/// three terms as (x + y) + z, as Eigen's Vector3d kernels do), so each lane's value is the
+/// same to the bit as the scalar bound of that child (the traversals' results do not change).
+struct Lanes {
+  __m128d v;
+};
+inline Lanes operator+(Lanes a, Lanes b) { return {_mm_add_pd(a.v, b.v)}; }
+inline Lanes operator-(Lanes a, Lanes b) { return {_mm_sub_pd(a.v, b.v)}; }
+inline Lanes operator*(Lanes a, Lanes b) { return {_mm_mul_pd(a.v, b.v)}; }
+inline Lanes operator/(Lanes a, Lanes b) { return {_mm_div_pd(a.v, b.v)}; }
+inline Lanes splat(double x) { return {_mm_set1_pd(x)}; }
+inline Lanes pair(double left, double right) { return {_mm_set_pd(right, left)}; }
+/// std::max(a, b) per lane (a where they compare equal, as std::max).
+inline Lanes lmax(Lanes a, Lanes b) { return {_mm_max_pd(b.v, a.v)}; }
+inline Lanes lmin(Lanes a, Lanes b) { return {_mm_min_pd(b.v, a.v)}; }
+inline Lanes labs(Lanes a) { return {_mm_andnot_pd(_mm_set1_pd(-0.0), a.v)}; }
+inline Lanes lsqrt(Lanes a) { return {_mm_sqrt_pd(a.v)}; }
+inline double lane0(Lanes a) { return _mm_cvtsd_f64(a.v); }
+inline double lane1(Lanes a) { return _mm_cvtsd_f64(_mm_unpackhi_pd(a.v, a.v)); }
+
+/// A 3-vector per lane.
+struct Lanes3 {
+  Lanes x, y, z;
+};
+inline Lanes dot(const Lanes3& a, const Lanes3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline Lanes dot(const Lanes3& a, const Vec3& b) { return a.x * splat(b.x()) + a.y * splat(b.y()) + a.z * splat(b.z()); }
+
+/// The two children's boxes (lanes: left, right).
+struct BoxPair {
+  Lanes3 lo, hi;
+  BoxPair(const Aabb& l, const Aabb& r)
+      : lo{pair(l.lo.x(), r.lo.x()), pair(l.lo.y(), r.lo.y()), pair(l.lo.z(), r.lo.z())},
+        hi{pair(l.hi.x(), r.hi.x()), pair(l.hi.y(), r.hi.y()), pair(l.hi.z(), r.hi.z())} {}
+};
+
+/// CoreM::gapBound per lane.
+template <class Core>
+Lanes gapBound2(const Core& core, const BoxPair& b) {
+  const Lanes zero = splat(0.0);
+  const Lanes gx = lmax(lmax(b.lo.x - splat(core.box.hi.x()), splat(core.box.lo.x()) - b.hi.x), zero);
+  const Lanes gy = lmax(lmax(b.lo.y - splat(core.box.hi.y()), splat(core.box.lo.y()) - b.hi.y), zero);
+  const Lanes gz = lmax(lmax(b.lo.z - splat(core.box.hi.z()), splat(core.box.lo.z()) - b.hi.z), zero);
+  return lsqrt(gx * gx + gy * gy + gz * gz);
+}
+
+/// CoreM::centreBound per lane: f(c) returned, the gradient in *u, f(c) − |u|·h in *sep.
+template <ShapeType kType, class Core>
+Lanes centreBound2(const Core& core, const BoxPair& b, Lanes3* u, Lanes* sep) {
+  const Lanes half = splat(0.5);
+  const Lanes3 y{half * (b.lo.x + b.hi.x) - splat(core.p0.x()), half * (b.lo.y + b.hi.y) - splat(core.p0.y()),
+                 half * (b.lo.z + b.hi.z) - splat(core.p0.z())};
+  Lanes3 w;
+  if constexpr (kType == ShapeType::Sphere) {
+    w = y;
+  } else if constexpr (kType == ShapeType::Capsule) {
+    const Lanes s = lmin(lmax(dot(y, core.d) * splat(core.inv_dd), splat(0.0)), splat(1.0));
+    w = {y.x - s * splat(core.d.x()), y.y - s * splat(core.d.y()), y.z - s * splat(core.d.z())};
+  } else {
+    const Mat3& R = core.R_MB;
+    Lanes xb[3];
+    for (int i = 0; i < 3; ++i) {
+      const Lanes v = splat(R(0, i)) * y.x + splat(R(1, i)) * y.y + splat(R(2, i)) * y.z;
+      const Lanes e = splat(core.e[i]);
+      xb[i] = v - lmin(lmax(v, splat(-core.e[i])), e);
+    }
+    w = {splat(R(0, 0)) * xb[0] + splat(R(0, 1)) * xb[1] + splat(R(0, 2)) * xb[2],
+         splat(R(1, 0)) * xb[0] + splat(R(1, 1)) * xb[1] + splat(R(1, 2)) * xb[2],
+         splat(R(2, 0)) * xb[0] + splat(R(2, 1)) * xb[1] + splat(R(2, 2)) * xb[2]};
+  }
+  const Lanes f = lsqrt(dot(w, w));
+  // u = w / f where f > 0, else 0 (the division's lanes with f = 0 are masked off).
+  const __m128d positive = _mm_cmpgt_pd(f.v, _mm_setzero_pd());
+  const Lanes safe = {_mm_or_pd(_mm_and_pd(positive, f.v), _mm_andnot_pd(positive, _mm_set1_pd(1.0)))};
+  u->x = {_mm_and_pd(positive, (w.x / safe).v)};
+  u->y = {_mm_and_pd(positive, (w.y / safe).v)};
+  u->z = {_mm_and_pd(positive, (w.z / safe).v)};
+  *sep = f - (labs(u->x) * (half * (b.hi.x - b.lo.x)) + labs(u->y) * (half * (b.hi.y - b.lo.y)) +
+              labs(u->z) * (half * (b.hi.z - b.lo.z)));
+  return f;
+}
+#endif
+
 /// Solid angle of triangle abc seen from the origin (Van Oosterom & Strackee 1983), positive
 /// when the origin is behind the counter-clockwise face.
 double solidAngle(const Vec3& a, const Vec3& b, const Vec3& c) {
@@ -397,8 +485,29 @@ struct MeshBvh::Impl {
         }
         continue;
       }
+#if defined(__SSE2__)
+      // Both children at once; each lane as core.lowerBound(box, best).
+      double lb_left, lb_right;
+      {
+        const BoxPair pair_box(bvh.nodes_[static_cast<size_t>(node.first)].box, bvh.nodes_[static_cast<size_t>(node.right)].box);
+        const Lanes gap = gapBound2(core, pair_box);
+        lb_left = lane0(gap);
+        lb_right = lane1(gap);
+        if constexpr (kType != ShapeType::Sphere) {
+          if (!(lb_left > best) || !(lb_right > best)) {
+            Lanes3 u;
+            Lanes sep;
+            centreBound2<kType>(core, pair_box, &u, &sep);
+            const Lanes lb = lmax(gap, sep);
+            if (!(lb_left > best)) lb_left = lane0(lb);
+            if (!(lb_right > best)) lb_right = lane1(lb);
+          }
+        }
+      }
+#else
       const double lb_left = core.lowerBound(bvh.nodes_[static_cast<size_t>(node.first)].box, best);
       const double lb_right = core.lowerBound(bvh.nodes_[static_cast<size_t>(node.right)].box, best);
+#endif
       // Nearer child on top of the stack.
       const bool left_first = lb_left <= lb_right;
       const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
@@ -574,8 +683,43 @@ struct MeshBvh::Impl {
         }
         continue;
       }
+#if defined(__SSE2__)
+      // Both children at once; each lane as boxTime(box, best).
+      double t_left, t_right;
+      {
+        const BoxPair pair_box(bvh.nodes_[static_cast<size_t>(node.first)].box, bvh.nodes_[static_cast<size_t>(node.right)].box);
+        const Lanes gap = gapBound2(core, pair_box);
+        double t[2];
+        const double g[2] = {lane0(gap), lane1(gap)};
+        for (int k = 0; k < 2; ++k) {
+          const double margin_gap = g[k] - r - eta;
+          t[k] = 0.0;
+          if (margin_gap > 0.0) t[k] = mu_c > 0.0 ? margin_gap / mu_c : std::numeric_limits<double>::infinity();
+        }
+        if (t[0] < best || t[1] < best) {
+          Lanes3 u;
+          Lanes sep;
+          const Lanes f = centreBound2<kType>(core, pair_box, &u, &sep);
+          const Lanes margin = sep - splat(r) - splat(eta);
+          const Lanes cx = u.y * splat(theta_M.z()) - u.z * splat(theta_M.y());
+          const Lanes cy = u.z * splat(theta_M.x()) - u.x * splat(theta_M.z());
+          const Lanes cz = u.x * splat(theta_M.y()) - u.y * splat(theta_M.x());
+          const Lanes rate = dot(u, dp_M) + splat(rho_c) * lsqrt(cx * cx + cy * cy + cz * cz);
+          const Lanes q = margin / rate;
+          const double fs[2] = {lane0(f), lane1(f)}, ms[2] = {lane0(margin), lane1(margin)};
+          const double rs[2] = {lane0(rate), lane1(rate)}, qs[2] = {lane0(q), lane1(q)};
+          for (int k = 0; k < 2; ++k) {
+            if (t[k] >= best || fs[k] <= 0.0 || ms[k] <= 0.0) continue;
+            t[k] = std::max(t[k], rs[k] > 0.0 ? qs[k] : std::numeric_limits<double>::infinity());
+          }
+        }
+        t_left = t[0];
+        t_right = t[1];
+      }
+#else
       const double t_left = boxTime(bvh.nodes_[static_cast<size_t>(node.first)].box, best);
       const double t_right = boxTime(bvh.nodes_[static_cast<size_t>(node.right)].box, best);
+#endif
       const bool left_first = t_left <= t_right;
       const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
       const double far_t = left_first ? t_right : t_left, near_t = left_first ? t_left : t_right;
