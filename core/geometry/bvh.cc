@@ -8,6 +8,10 @@
 #include <stdexcept>
 #include <string>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 namespace godhand::geo {
 namespace {
 
@@ -117,9 +121,11 @@ double bodyAxisTime(const std::array<Vec3, 3>& v, const Vec3& p0, const Vec3& w,
   return t_min * (1.0 - 1e-12);  // round-off: never later than the bound
 }
 
-/// The shape's core in frame M, with what the box lower bounds need.
+/// The shape's core in frame M, with what the box lower bounds need. The shape type is a
+/// template parameter so that the traversals below are compiled once per type, with the core's
+/// distance inlined into them (no dispatch per node).
+template <ShapeType kType>
 struct CoreM {
-  ShapeType type = ShapeType::Sphere;
   Vec3 p0 = Vec3::Zero(), p1 = Vec3::Zero();  ///< segment (sphere: p0 = p1 = centre)
   Vec3 d = Vec3::Zero();                      ///< p1 − p0
   double inv_dd = 0.0;                        ///< 1/|d|² (0 for a point segment)
@@ -127,25 +133,20 @@ struct CoreM {
   Vec3 e = Vec3::Zero();                      ///< box half extents
   Aabb box;                                   ///< of the core
 
-  CoreM(const Shape& shape, const Pose& X_MB) : type(shape.type), R_MB(X_MB.q.toRotationMatrix()) {
-    switch (shape.type) {
-      case ShapeType::Sphere:
-        p0 = p1 = X_MB.p;
-        break;
-      case ShapeType::Capsule: {
-        const Vec3 h_M = R_MB.col(2) * shape.half_length;
-        p0 = X_MB.p - h_M;
-        p1 = X_MB.p + h_M;
-        d = p1 - p0;
-        inv_dd = d.squaredNorm() > 0.0 ? 1.0 / d.squaredNorm() : 0.0;
-        break;
-      }
-      case ShapeType::Box:
-        p0 = p1 = X_MB.p;
-        e = shape.half_extents;
-        break;
+  CoreM(const Shape& shape, const Pose& X_MB) : R_MB(X_MB.q.toRotationMatrix()) {
+    if constexpr (kType == ShapeType::Sphere) {
+      p0 = p1 = X_MB.p;
+    } else if constexpr (kType == ShapeType::Capsule) {
+      const Vec3 h_M = R_MB.col(2) * shape.half_length;
+      p0 = X_MB.p - h_M;
+      p1 = X_MB.p + h_M;
+      d = p1 - p0;
+      inv_dd = d.squaredNorm() > 0.0 ? 1.0 / d.squaredNorm() : 0.0;
+    } else {
+      p0 = p1 = X_MB.p;
+      e = shape.half_extents;
     }
-    if (type == ShapeType::Box) {
+    if constexpr (kType == ShapeType::Box) {
       const Vec3 e_M = R_MB.cwiseAbs() * e;
       box.lo = p0 - e_M;
       box.hi = p0 + e_M;
@@ -158,20 +159,16 @@ struct CoreM {
   /// Distance f(x) from point x to the core, with the unit gradient u of f at x (zero if x is in
   /// the core). f is convex, so f(y) ≥ f(x) + u·(y − x) for every y: the lower bounds below.
   double pointDistance(const Vec3& x, Vec3* u) const {
-    Vec3 w = Vec3::Zero();
-    switch (type) {
-      case ShapeType::Sphere: w = x - p0; break;
-      case ShapeType::Capsule: {
-        const Vec3 v = x - p0;
-        const double s = std::clamp(v.dot(d) * inv_dd, 0.0, 1.0);
-        w = v - s * d;
-        break;
-      }
-      case ShapeType::Box: {
-        const Vec3 x_B = R_MB.transpose() * (x - p0);
-        w = R_MB * (x_B - x_B.cwiseMax(-e).cwiseMin(e));
-        break;
-      }
+    Vec3 w;
+    if constexpr (kType == ShapeType::Sphere) {
+      w = x - p0;
+    } else if constexpr (kType == ShapeType::Capsule) {
+      const Vec3 v = x - p0;
+      const double s = std::clamp(v.dot(d) * inv_dd, 0.0, 1.0);
+      w = v - s * d;
+    } else {
+      const Vec3 x_B = R_MB.transpose() * (x - p0);
+      w = R_MB * (x_B - x_B.cwiseMax(-e).cwiseMin(e));
     }
     const double f = w.norm();
     if (f > 0.0) *u = w / f;
@@ -185,26 +182,126 @@ struct CoreM {
     return std::sqrt(gap.squaredNorm());
   }
 
-  /// The box–box gap and the first-order (convexity) bound at the box centre,
-  /// f(c) − Σ|u_i| e_i; the second is skipped when the gap already exceeds `cutoff`.
-  double lowerBound(const Aabb& b, double cutoff = std::numeric_limits<double>::infinity()) const {
-    const double lb = gapBound(b);
-    if (type == ShapeType::Sphere || lb > cutoff) return lb;  // sphere: exact point–box distance
-    const Vec3 bc = b.centre();
-    Vec3 u;
-    const double f = pointDistance(bc, &u);
-    return std::max(lb, f - u.cwiseAbs().dot(0.5 * b.extent()));
+  /// f(c) − Σ|u_i| h_i at the centre c of box b (h its half extents) with the gradient u at c:
+  /// the first-order (convexity) bound of the core distance to the box, the separation of the
+  /// two along u. Returns f(c); *sep gets the bound (only where f(c) > 0).
+  double centreBound(const Aabb& b, Vec3* u, double* sep) const {
+    const double f = pointDistance(b.centre(), u);
+    *sep = f - u->cwiseAbs().dot(0.5 * b.extent());
+    return f;
   }
 
-  /// First-order lower bound of the core distance to triangle v: f(c) + min_k u·(v_k − c), c the
-  /// centroid (the minimum of a linear function over the triangle is at a corner).
-  double lowerBound(const std::array<Vec3, 3>& v) const {
-    const Vec3 c = (v[0] + v[1] + v[2]) / 3.0;
+  /// The box–box gap and the first-order bound at the box centre (centreBound); the second is
+  /// skipped when the gap already exceeds `cutoff`.
+  double lowerBound(const Aabb& b, double cutoff = std::numeric_limits<double>::infinity()) const {
+    const double lb = gapBound(b);
+    if (kType == ShapeType::Sphere || lb > cutoff) return lb;  // sphere: exact point–box distance
     Vec3 u;
-    const double f = pointDistance(c, &u);
-    return f + std::min({u.dot(v[0] - c), u.dot(v[1] - c), u.dot(v[2] - c)});
+    double sep;
+    centreBound(b, &u, &sep);
+    return std::max(lb, sep);
+  }
+
+  /// Separation of the core and triangle v along the core distance's gradient u at the centroid
+  /// c: f(c) + min_k u·(v_k − c) (the minimum of a linear function over the triangle is at a
+  /// corner), a lower bound of their distance. Returns f(c); *sep gets the separation.
+  double triangleBound(const std::array<Vec3, 3>& v, Vec3* u, double* sep) const {
+    const Vec3 c = (v[0] + v[1] + v[2]) / 3.0;
+    const double f = pointDistance(c, u);
+    *sep = f + std::min({u->dot(v[0] - c), u->dot(v[1] - c), u->dot(v[2] - c)});
+    return f;
+  }
+  double lowerBound(const std::array<Vec3, 3>& v) const {
+    Vec3 u;
+    double sep;
+    triangleBound(v, &u, &sep);
+    return sep;
   }
 };
+
+#if defined(__SSE2__)
+/// Two doubles, one per child of a BVH node: the bounds of both children evaluated at once
+/// (SSE2). Every lane does the arithmetic of CoreM's scalar code in the same order (sums of
+/// three terms as (x + y) + z, as Eigen's Vector3d kernels do), so each lane's value is the
+/// same to the bit as the scalar bound of that child (the traversals' results do not change).
+struct Lanes {
+  __m128d v;
+};
+inline Lanes operator+(Lanes a, Lanes b) { return {_mm_add_pd(a.v, b.v)}; }
+inline Lanes operator-(Lanes a, Lanes b) { return {_mm_sub_pd(a.v, b.v)}; }
+inline Lanes operator*(Lanes a, Lanes b) { return {_mm_mul_pd(a.v, b.v)}; }
+inline Lanes operator/(Lanes a, Lanes b) { return {_mm_div_pd(a.v, b.v)}; }
+inline Lanes splat(double x) { return {_mm_set1_pd(x)}; }
+inline Lanes pair(double left, double right) { return {_mm_set_pd(right, left)}; }
+/// std::max(a, b) per lane (a where they compare equal, as std::max).
+inline Lanes lmax(Lanes a, Lanes b) { return {_mm_max_pd(b.v, a.v)}; }
+inline Lanes lmin(Lanes a, Lanes b) { return {_mm_min_pd(b.v, a.v)}; }
+inline Lanes labs(Lanes a) { return {_mm_andnot_pd(_mm_set1_pd(-0.0), a.v)}; }
+inline Lanes lsqrt(Lanes a) { return {_mm_sqrt_pd(a.v)}; }
+inline double lane0(Lanes a) { return _mm_cvtsd_f64(a.v); }
+inline double lane1(Lanes a) { return _mm_cvtsd_f64(_mm_unpackhi_pd(a.v, a.v)); }
+
+/// A 3-vector per lane.
+struct Lanes3 {
+  Lanes x, y, z;
+};
+inline Lanes dot(const Lanes3& a, const Lanes3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+inline Lanes dot(const Lanes3& a, const Vec3& b) { return a.x * splat(b.x()) + a.y * splat(b.y()) + a.z * splat(b.z()); }
+
+/// The two children's boxes (lanes: left, right).
+struct BoxPair {
+  Lanes3 lo, hi;
+  BoxPair(const Aabb& l, const Aabb& r)
+      : lo{pair(l.lo.x(), r.lo.x()), pair(l.lo.y(), r.lo.y()), pair(l.lo.z(), r.lo.z())},
+        hi{pair(l.hi.x(), r.hi.x()), pair(l.hi.y(), r.hi.y()), pair(l.hi.z(), r.hi.z())} {}
+};
+
+/// CoreM::gapBound per lane.
+template <class Core>
+Lanes gapBound2(const Core& core, const BoxPair& b) {
+  const Lanes zero = splat(0.0);
+  const Lanes gx = lmax(lmax(b.lo.x - splat(core.box.hi.x()), splat(core.box.lo.x()) - b.hi.x), zero);
+  const Lanes gy = lmax(lmax(b.lo.y - splat(core.box.hi.y()), splat(core.box.lo.y()) - b.hi.y), zero);
+  const Lanes gz = lmax(lmax(b.lo.z - splat(core.box.hi.z()), splat(core.box.lo.z()) - b.hi.z), zero);
+  return lsqrt(gx * gx + gy * gy + gz * gz);
+}
+
+/// CoreM::centreBound per lane: f(c) returned, the gradient in *u, f(c) − |u|·h in *sep.
+template <ShapeType kType, class Core>
+Lanes centreBound2(const Core& core, const BoxPair& b, Lanes3* u, Lanes* sep) {
+  const Lanes half = splat(0.5);
+  const Lanes3 y{half * (b.lo.x + b.hi.x) - splat(core.p0.x()), half * (b.lo.y + b.hi.y) - splat(core.p0.y()),
+                 half * (b.lo.z + b.hi.z) - splat(core.p0.z())};
+  Lanes3 w;
+  if constexpr (kType == ShapeType::Sphere) {
+    w = y;
+  } else if constexpr (kType == ShapeType::Capsule) {
+    const Lanes s = lmin(lmax(dot(y, core.d) * splat(core.inv_dd), splat(0.0)), splat(1.0));
+    w = {y.x - s * splat(core.d.x()), y.y - s * splat(core.d.y()), y.z - s * splat(core.d.z())};
+  } else {
+    const Mat3& R = core.R_MB;
+    Lanes xb[3];
+    for (int i = 0; i < 3; ++i) {
+      const Lanes v = splat(R(0, i)) * y.x + splat(R(1, i)) * y.y + splat(R(2, i)) * y.z;
+      const Lanes e = splat(core.e[i]);
+      xb[i] = v - lmin(lmax(v, splat(-core.e[i])), e);
+    }
+    w = {splat(R(0, 0)) * xb[0] + splat(R(0, 1)) * xb[1] + splat(R(0, 2)) * xb[2],
+         splat(R(1, 0)) * xb[0] + splat(R(1, 1)) * xb[1] + splat(R(1, 2)) * xb[2],
+         splat(R(2, 0)) * xb[0] + splat(R(2, 1)) * xb[1] + splat(R(2, 2)) * xb[2]};
+  }
+  const Lanes f = lsqrt(dot(w, w));
+  // u = w / f where f > 0, else 0 (the division's lanes with f = 0 are masked off).
+  const __m128d positive = _mm_cmpgt_pd(f.v, _mm_setzero_pd());
+  const Lanes safe = {_mm_or_pd(_mm_and_pd(positive, f.v), _mm_andnot_pd(positive, _mm_set1_pd(1.0)))};
+  u->x = {_mm_and_pd(positive, (w.x / safe).v)};
+  u->y = {_mm_and_pd(positive, (w.y / safe).v)};
+  u->z = {_mm_and_pd(positive, (w.z / safe).v)};
+  *sep = f - (labs(u->x) * (half * (b.hi.x - b.lo.x)) + labs(u->y) * (half * (b.hi.y - b.lo.y)) +
+              labs(u->z) * (half * (b.hi.z - b.lo.z)));
+  return f;
+}
+#endif
 
 /// Solid angle of triangle abc seen from the origin (Van Oosterom & Strackee 1983), positive
 /// when the origin is behind the counter-clockwise face.
@@ -341,12 +438,303 @@ struct MeshBvh::Impl {
       moment += (data.centroids[static_cast<size_t>(t)] - centre) * data.area_vectors[static_cast<size_t>(t)].transpose();
     }
     if (bvh.dipole_moment_.size() <= static_cast<size_t>(index)) bvh.dipole_moment_.resize(static_cast<size_t>(index) + 1);
+    if (bvh.dipoles_.size() <= static_cast<size_t>(index)) bvh.dipoles_.resize(static_cast<size_t>(index) + 1);
     bvh.dipole_moment_[static_cast<size_t>(index)] = moment;
-    Node& node = bvh.nodes_[static_cast<size_t>(index)];
-    node.dipole_centre = centre;
-    node.dipole_normal = normal;
-    node.radius = std::sqrt(radius2);
+    NodeDipole& dipole = bvh.dipoles_[static_cast<size_t>(index)];
+    dipole.centre = centre;
+    dipole.normal = normal;
+    dipole.radius = std::sqrt(radius2);
   }
+  // The queries, compiled once per shape type (CoreM<kType>); see bvh.h for what they return.
+  template <ShapeType kType>
+  static bool closest(const MeshBvh& bvh, const Shape& shape, const Pose& X_MB, double max_distance,
+                      NearTriangle* out) {
+    if (bvh.nodes_.empty() || std::isnan(max_distance)) return false;
+    double best = max_distance + coreRadius(shape);  // core-distance threshold, inclusive
+    if (best < 0.0) return false;
+    const CoreM<kType> core(shape, X_MB);
+    const Mat3 R_BM = core.R_MB.transpose();
+    int best_index = -1;
+    Vec3 best_core_B, best_tri_B;
+    std::array<Vec3, 3> best_abc_B;
+
+    int stack[kStackSize];
+    double stack_lb[kStackSize];
+    int sp = 0;
+    stack[sp] = 0;
+    stack_lb[sp++] = core.lowerBound(bvh.nodes_[0].box);
+    while (sp > 0) {
+      --sp;
+      if (stack_lb[sp] > best) continue;
+      const Node& node = bvh.nodes_[static_cast<size_t>(stack[sp])];
+      if (node.count > 0) {
+        for (int i = node.first; i < node.first + node.count; ++i) {
+          if (core.gapBound(bvh.tri_boxes_[static_cast<size_t>(i)]) > best) continue;
+          const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
+          if (core.lowerBound(v) > best) continue;
+          const std::array<Vec3, 3> abc_B = {R_BM * (v[0] - X_MB.p), R_BM * (v[1] - X_MB.p), R_BM * (v[2] - X_MB.p)};
+          Vec3 core_B, tri_B;
+          const double d = detail::coreTriangle(shape, abc_B[0], abc_B[1], abc_B[2], &core_B, &tri_B);
+          if (d <= best) {
+            best = d;
+            best_index = i;
+            best_core_B = core_B;
+            best_tri_B = tri_B;
+            best_abc_B = abc_B;
+          }
+        }
+        continue;
+      }
+#if defined(__SSE2__)
+      // Both children at once; each lane as core.lowerBound(box, best).
+      double lb_left, lb_right;
+      {
+        const BoxPair pair_box(bvh.nodes_[static_cast<size_t>(node.first)].box, bvh.nodes_[static_cast<size_t>(node.right)].box);
+        const Lanes gap = gapBound2(core, pair_box);
+        lb_left = lane0(gap);
+        lb_right = lane1(gap);
+        if constexpr (kType != ShapeType::Sphere) {
+          if (!(lb_left > best) || !(lb_right > best)) {
+            Lanes3 u;
+            Lanes sep;
+            centreBound2<kType>(core, pair_box, &u, &sep);
+            const Lanes lb = lmax(gap, sep);
+            if (!(lb_left > best)) lb_left = lane0(lb);
+            if (!(lb_right > best)) lb_right = lane1(lb);
+          }
+        }
+      }
+#else
+      const double lb_left = core.lowerBound(bvh.nodes_[static_cast<size_t>(node.first)].box, best);
+      const double lb_right = core.lowerBound(bvh.nodes_[static_cast<size_t>(node.right)].box, best);
+#endif
+      // Nearer child on top of the stack.
+      const bool left_first = lb_left <= lb_right;
+      const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
+      const double far_lb = left_first ? lb_right : lb_left, near_lb = left_first ? lb_left : lb_right;
+      if (far_lb <= best) { stack[sp] = far_node; stack_lb[sp++] = far_lb; }
+      if (near_lb <= best) { stack[sp] = near_node; stack_lb[sp++] = near_lb; }
+    }
+    if (best_index < 0) return false;
+    out->triangle = bvh.order_[static_cast<size_t>(best_index)];
+    out->closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, best, best_core_B, best_tri_B, best_abc_B[0],
+                                               best_abc_B[1], best_abc_B[2]);
+    return true;
+  }
+
+  template <ShapeType kType>
+  static void near(const MeshBvh& bvh, const Shape& shape, const Pose& X_MB, double max_distance,
+                   std::vector<NearTriangle>* out) {
+    if (bvh.nodes_.empty() || std::isnan(max_distance)) return;
+    const double limit = max_distance + coreRadius(shape);
+    if (limit < 0.0) return;
+    const CoreM<kType> core(shape, X_MB);
+    const Mat3 R_BM = core.R_MB.transpose();
+    int stack[kStackSize];
+    int sp = 0;
+    stack[sp++] = 0;
+    while (sp > 0) {
+      const Node& node = bvh.nodes_[static_cast<size_t>(stack[--sp])];
+      if (core.lowerBound(node.box, limit) > limit) continue;
+      if (node.count > 0) {
+        for (int i = node.first; i < node.first + node.count; ++i) {
+          if (core.gapBound(bvh.tri_boxes_[static_cast<size_t>(i)]) > limit) continue;
+          const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
+          if (core.lowerBound(v) > limit) continue;
+          const Vec3 a_B = R_BM * (v[0] - X_MB.p), b_B = R_BM * (v[1] - X_MB.p), c_B = R_BM * (v[2] - X_MB.p);
+          Vec3 core_B, tri_B;
+          const double d = detail::coreTriangle(shape, a_B, b_B, c_B, &core_B, &tri_B);
+          if (d <= limit) {
+            NearTriangle nt;
+            nt.triangle = bvh.order_[static_cast<size_t>(i)];
+            nt.closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, d, core_B, tri_B, a_B, b_B, c_B);
+            out->push_back(nt);
+          }
+        }
+      } else {
+        stack[sp++] = node.right;
+        stack[sp++] = node.first;
+      }
+    }
+  }
+
+  template <ShapeType kType>
+  static double advancementStep(const MeshBvh& bvh, const Shape& shape, const Pose& X_MB, const Vec3& dp_M,
+                                const Vec3& theta_M, double eta, double horizon, NearTriangle* limiting, int hint) {
+    limiting->triangle = -1;
+    if (bvh.nodes_.empty() || !(horizon > 0.0)) return std::max(0.0, horizon);
+    const double r = coreRadius(shape), rho_c = coreBoundingRadius(shape);
+    const double mu_c = dp_M.norm() + rho_c * theta_M.norm();  // bound along any direction
+    const CoreM<kType> core(shape, X_MB);
+    const Mat3 R_BM = core.R_MB.transpose();
+    // The core's axes in M for the second-order bound (a sphere's core is a point: exact already).
+    Vec3 axes[3];
+    double halves[3];
+    int n_axes = 0;
+    if (kType == ShapeType::Capsule && shape.half_length > 0.0) {
+      axes[0] = core.R_MB.col(2);
+      halves[0] = shape.half_length;
+      n_axes = 1;
+    } else if (kType == ShapeType::Box) {
+      for (int j = 0; j < 3; ++j) {
+        axes[j] = core.R_MB.col(j);
+        halves[j] = shape.half_extents[j];
+      }
+      n_axes = 3;
+    }
+    // Time for a separation s (core to object, along unit w) to shrink to r + η.
+    auto timeBound = [&](double s, const Vec3& w) {
+      const double margin = s - r - eta;
+      if (margin <= 0.0) return 0.0;
+      const double rate = w.dot(dp_M) + rho_c * w.cross(theta_M).norm();
+      return rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
+    };
+    // Lower bound of the time before box b can come within η: the larger of the directional bound
+    // along the first-order separating direction and the box-gap bound at the full speed μ_c.
+    auto boxTime = [&](const Aabb& b, double cutoff) {
+      const double margin_gap = core.gapBound(b) - r - eta;
+      double t_gap = 0.0;
+      if (margin_gap > 0.0) t_gap = mu_c > 0.0 ? margin_gap / mu_c : std::numeric_limits<double>::infinity();
+      if (t_gap >= cutoff) return t_gap;
+      Vec3 u;
+      double sep;
+      if (core.centreBound(b, &u, &sep) <= 0.0) return t_gap;
+      return std::max(t_gap, timeBound(sep, u));
+    };
+    double best = horizon;
+    int best_index = std::numeric_limits<int>::min();  // none yet
+    Vec3 best_core_B, best_tri_B;
+    std::array<Vec3, 3> best_abc_B;
+    double best_d = 0.0;
+    // Exact time bound of one triangle (corners in M); updates the best.
+    auto visitTriangle = [&](int i, const std::array<Vec3, 3>& v) {
+      const std::array<Vec3, 3> abc_B = {R_BM * (v[0] - X_MB.p), R_BM * (v[1] - X_MB.p), R_BM * (v[2] - X_MB.p)};
+      Vec3 core_B, tri_B;
+      const double d_core = detail::coreTriangle(shape, abc_B[0], abc_B[1], abc_B[2], &core_B, &tri_B);
+      double t_i = 0.0;
+      if (d_core > 0.0) {
+        // Separating direction from the core towards the triangle, frame M (the closest pair's, so
+        // the separation along it is the distance now): the larger of the first-order and the
+        // second-order bound (both are lower bounds of the contact time). A triangle already
+        // within η (a body resting at the sweep's floor) may not come closer by more than
+        // kMinShrink: the body can recede or slide along it, not creep in. (Only here: for boxes
+        // and the pre-check the separation is a lower bound below the distance, so a margin <= 0
+        // there says nothing and they are always visited.)
+        const Vec3 w_M = core.R_MB * ((tri_B - core_B) / d_core);
+        const double margin = std::max(d_core - r - eta, kMinShrink);
+        const double rate = w_M.dot(dp_M) + rho_c * w_M.cross(theta_M).norm();
+        t_i = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
+        if (t_i < best && n_axes > 0)
+          t_i = std::max(t_i, secondOrderTime(margin, w_M, dp_M, theta_M, axes, halves, n_axes, horizon));
+        if (t_i < best && theta_M.squaredNorm() > 0.0) {
+          double support = 0.0;
+          for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(w_M.dot(axes[j]));
+          t_i = std::max(t_i, bodyAxisTime(v, X_MB.p, w_M, support, r + eta, dp_M, theta_M, kMinShrink));
+        }
+      }
+      if (t_i < best) {
+        best = t_i;
+        best_index = i;
+        best_core_B = core_B;
+        best_tri_B = tri_B;
+        best_abc_B = abc_B;
+        best_d = d_core;
+      }
+    };
+    if (hint >= 0 && hint < bvh.mesh_.triangleCount()) {
+      visitTriangle(-1 - hint, {bvh.mesh_.vertex(hint, 0), bvh.mesh_.vertex(hint, 1), bvh.mesh_.vertex(hint, 2)});
+    }
+    int stack[kStackSize];
+    double stack_t[kStackSize];
+    int sp = 0;
+    stack[sp] = 0;
+    stack_t[sp++] = boxTime(bvh.nodes_[0].box, best);
+    while (sp > 0) {
+      --sp;
+      if (stack_t[sp] >= best) continue;
+      const Node& node = bvh.nodes_[static_cast<size_t>(stack[sp])];
+      if (node.count > 0) {
+        for (int i = node.first; i < node.first + node.count; ++i) {
+          if (boxTime(bvh.tri_boxes_[static_cast<size_t>(i)], best) >= best) continue;
+          const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
+          {
+            // f(c) + min_k u·(v_k − c), u the core distance's gradient at the centroid c, is the
+            // separation of core and triangle along the fixed direction u (u is the core's outward
+            // normal at the point nearest c), so every bound of visitTriangle holds along it too:
+            // the first-order one, then (where that does not settle it) the second-order and the
+            // body-axis ones, which see a turning body's far end recede. Only where the shape is
+            // more than η clear along u (a smaller separation says nothing: the triangle is visited).
+            Vec3 u;
+            double sep;
+            if (core.triangleBound(v, &u, &sep) > 0.0) {
+              double t_u = timeBound(sep, u);
+              const double margin = sep - r - eta;
+              if (t_u < best && margin > 0.0 && n_axes > 0)
+                t_u = std::max(t_u, secondOrderTime(margin, u, dp_M, theta_M, axes, halves, n_axes, horizon));
+              if (t_u < best && margin > 0.0 && theta_M.squaredNorm() > 0.0) {
+                double support = 0.0;
+                for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(u.dot(axes[j]));
+                t_u = std::max(t_u, bodyAxisTime(v, X_MB.p, u, support, r + eta, dp_M, theta_M, 0.0));
+              }
+              if (t_u >= best) continue;
+            }
+          }
+          visitTriangle(i, v);
+        }
+        continue;
+      }
+#if defined(__SSE2__)
+      // Both children at once; each lane as boxTime(box, best).
+      double t_left, t_right;
+      {
+        const BoxPair pair_box(bvh.nodes_[static_cast<size_t>(node.first)].box, bvh.nodes_[static_cast<size_t>(node.right)].box);
+        const Lanes gap = gapBound2(core, pair_box);
+        double t[2];
+        const double g[2] = {lane0(gap), lane1(gap)};
+        for (int k = 0; k < 2; ++k) {
+          const double margin_gap = g[k] - r - eta;
+          t[k] = 0.0;
+          if (margin_gap > 0.0) t[k] = mu_c > 0.0 ? margin_gap / mu_c : std::numeric_limits<double>::infinity();
+        }
+        if (t[0] < best || t[1] < best) {
+          Lanes3 u;
+          Lanes sep;
+          const Lanes f = centreBound2<kType>(core, pair_box, &u, &sep);
+          const Lanes margin = sep - splat(r) - splat(eta);
+          const Lanes cx = u.y * splat(theta_M.z()) - u.z * splat(theta_M.y());
+          const Lanes cy = u.z * splat(theta_M.x()) - u.x * splat(theta_M.z());
+          const Lanes cz = u.x * splat(theta_M.y()) - u.y * splat(theta_M.x());
+          const Lanes rate = dot(u, dp_M) + splat(rho_c) * lsqrt(cx * cx + cy * cy + cz * cz);
+          const Lanes q = margin / rate;
+          const double fs[2] = {lane0(f), lane1(f)}, ms[2] = {lane0(margin), lane1(margin)};
+          const double rs[2] = {lane0(rate), lane1(rate)}, qs[2] = {lane0(q), lane1(q)};
+          for (int k = 0; k < 2; ++k) {
+            if (t[k] >= best || fs[k] <= 0.0 || ms[k] <= 0.0) continue;
+            t[k] = std::max(t[k], rs[k] > 0.0 ? qs[k] : std::numeric_limits<double>::infinity());
+          }
+        }
+        t_left = t[0];
+        t_right = t[1];
+      }
+#else
+      const double t_left = boxTime(bvh.nodes_[static_cast<size_t>(node.first)].box, best);
+      const double t_right = boxTime(bvh.nodes_[static_cast<size_t>(node.right)].box, best);
+#endif
+      const bool left_first = t_left <= t_right;
+      const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
+      const double far_t = left_first ? t_right : t_left, near_t = left_first ? t_left : t_right;
+      if (far_t < best) { stack[sp] = far_node; stack_t[sp++] = far_t; }
+      if (near_t < best) { stack[sp] = near_node; stack_t[sp++] = near_t; }
+    }
+    if (best_index != std::numeric_limits<int>::min()) {
+      // best_index ≥ 0: position in bvh.order_; < 0: the hint, encoded −1 − triangle.
+      limiting->triangle = best_index >= 0 ? bvh.order_[static_cast<size_t>(best_index)] : -1 - best_index;
+      limiting->closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, best_d, best_core_B, best_tri_B,
+                                                      best_abc_B[0], best_abc_B[1], best_abc_B[2]);
+    }
+    return best;
+  }
+
 };
 
 MeshBvh::MeshBvh(TriangleMesh mesh) : mesh_(std::move(mesh)) {
@@ -385,9 +773,11 @@ MeshBvh::MeshBvh(TriangleMesh mesh) : mesh_(std::move(mesh)) {
   std::iota(order_.begin(), order_.end(), 0);
   nodes_.reserve(2 * static_cast<size_t>(n));  // ≤ 2n − 1 nodes
   dipole_moment_.reserve(nodes_.capacity());
+  dipoles_.reserve(nodes_.capacity());
   Impl::build(*this, 0, n, 0, data);
   nodes_.shrink_to_fit();
   dipole_moment_.shrink_to_fit();
+  dipoles_.shrink_to_fit();
   tri_boxes_.resize(static_cast<size_t>(n));
   tri_vertices_.resize(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) {
@@ -418,233 +808,34 @@ void MeshBvh::trianglesOverlapping(const Aabb& box_M, std::vector<int>* out) con
 }
 
 bool MeshBvh::closest(const Shape& shape, const Pose& X_MB, double max_distance, NearTriangle* out) const {
-  if (nodes_.empty() || std::isnan(max_distance)) return false;
-  double best = max_distance + coreRadius(shape);  // core-distance threshold, inclusive
-  if (best < 0.0) return false;
-  const CoreM core(shape, X_MB);
-  const Mat3 R_BM = core.R_MB.transpose();
-  int best_index = -1;
-  Vec3 best_core_B, best_tri_B;
-  std::array<Vec3, 3> best_abc_B;
-
-  int stack[kStackSize];
-  double stack_lb[kStackSize];
-  int sp = 0;
-  stack[sp] = 0;
-  stack_lb[sp++] = core.lowerBound(nodes_[0].box);
-  while (sp > 0) {
-    --sp;
-    if (stack_lb[sp] > best) continue;
-    const Node& node = nodes_[static_cast<size_t>(stack[sp])];
-    if (node.count > 0) {
-      for (int i = node.first; i < node.first + node.count; ++i) {
-        if (core.gapBound(tri_boxes_[static_cast<size_t>(i)]) > best) continue;
-        const auto& v = tri_vertices_[static_cast<size_t>(i)];
-        if (core.lowerBound(v) > best) continue;
-        const std::array<Vec3, 3> abc_B = {R_BM * (v[0] - X_MB.p), R_BM * (v[1] - X_MB.p), R_BM * (v[2] - X_MB.p)};
-        Vec3 core_B, tri_B;
-        const double d = detail::coreTriangle(shape, abc_B[0], abc_B[1], abc_B[2], &core_B, &tri_B);
-        if (d <= best) {
-          best = d;
-          best_index = i;
-          best_core_B = core_B;
-          best_tri_B = tri_B;
-          best_abc_B = abc_B;
-        }
-      }
-      continue;
-    }
-    const double lb_left = core.lowerBound(nodes_[static_cast<size_t>(node.first)].box, best);
-    const double lb_right = core.lowerBound(nodes_[static_cast<size_t>(node.right)].box, best);
-    // Nearer child on top of the stack.
-    const bool left_first = lb_left <= lb_right;
-    const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
-    const double far_lb = left_first ? lb_right : lb_left, near_lb = left_first ? lb_left : lb_right;
-    if (far_lb <= best) { stack[sp] = far_node; stack_lb[sp++] = far_lb; }
-    if (near_lb <= best) { stack[sp] = near_node; stack_lb[sp++] = near_lb; }
+  switch (shape.type) {
+    case ShapeType::Sphere: return Impl::closest<ShapeType::Sphere>(*this, shape, X_MB, max_distance, out);
+    case ShapeType::Capsule: return Impl::closest<ShapeType::Capsule>(*this, shape, X_MB, max_distance, out);
+    case ShapeType::Box: return Impl::closest<ShapeType::Box>(*this, shape, X_MB, max_distance, out);
   }
-  if (best_index < 0) return false;
-  out->triangle = order_[static_cast<size_t>(best_index)];
-  out->closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, best, best_core_B, best_tri_B, best_abc_B[0],
-                                             best_abc_B[1], best_abc_B[2]);
-  return true;
+  return false;
 }
 
 void MeshBvh::near(const Shape& shape, const Pose& X_MB, double max_distance, std::vector<NearTriangle>* out) const {
-  if (nodes_.empty() || std::isnan(max_distance)) return;
-  const double limit = max_distance + coreRadius(shape);
-  if (limit < 0.0) return;
-  const CoreM core(shape, X_MB);
-  const Mat3 R_BM = core.R_MB.transpose();
-  int stack[kStackSize];
-  int sp = 0;
-  stack[sp++] = 0;
-  while (sp > 0) {
-    const Node& node = nodes_[static_cast<size_t>(stack[--sp])];
-    if (core.lowerBound(node.box, limit) > limit) continue;
-    if (node.count > 0) {
-      for (int i = node.first; i < node.first + node.count; ++i) {
-        if (core.gapBound(tri_boxes_[static_cast<size_t>(i)]) > limit) continue;
-        const auto& v = tri_vertices_[static_cast<size_t>(i)];
-        if (core.lowerBound(v) > limit) continue;
-        const Vec3 a_B = R_BM * (v[0] - X_MB.p), b_B = R_BM * (v[1] - X_MB.p), c_B = R_BM * (v[2] - X_MB.p);
-        Vec3 core_B, tri_B;
-        const double d = detail::coreTriangle(shape, a_B, b_B, c_B, &core_B, &tri_B);
-        if (d <= limit) {
-          NearTriangle nt;
-          nt.triangle = order_[static_cast<size_t>(i)];
-          nt.closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, d, core_B, tri_B, a_B, b_B, c_B);
-          out->push_back(nt);
-        }
-      }
-    } else {
-      stack[sp++] = node.right;
-      stack[sp++] = node.first;
-    }
+  switch (shape.type) {
+    case ShapeType::Sphere: return Impl::near<ShapeType::Sphere>(*this, shape, X_MB, max_distance, out);
+    case ShapeType::Capsule: return Impl::near<ShapeType::Capsule>(*this, shape, X_MB, max_distance, out);
+    case ShapeType::Box: return Impl::near<ShapeType::Box>(*this, shape, X_MB, max_distance, out);
   }
 }
 
 double MeshBvh::advancementStep(const Shape& shape, const Pose& X_MB, const Vec3& dp_M, const Vec3& theta_M,
                                 double eta, double horizon, NearTriangle* limiting, int hint) const {
+  switch (shape.type) {
+    case ShapeType::Sphere:
+      return Impl::advancementStep<ShapeType::Sphere>(*this, shape, X_MB, dp_M, theta_M, eta, horizon, limiting, hint);
+    case ShapeType::Capsule:
+      return Impl::advancementStep<ShapeType::Capsule>(*this, shape, X_MB, dp_M, theta_M, eta, horizon, limiting, hint);
+    case ShapeType::Box:
+      return Impl::advancementStep<ShapeType::Box>(*this, shape, X_MB, dp_M, theta_M, eta, horizon, limiting, hint);
+  }
   limiting->triangle = -1;
-  if (nodes_.empty() || !(horizon > 0.0)) return std::max(0.0, horizon);
-  const double r = coreRadius(shape), rho_c = coreBoundingRadius(shape);
-  const double mu_c = dp_M.norm() + rho_c * theta_M.norm();  // bound along any direction
-  const CoreM core(shape, X_MB);
-  const Mat3 R_BM = core.R_MB.transpose();
-  // The core's axes in M for the second-order bound (a sphere's core is a point: exact already).
-  Vec3 axes[3];
-  double halves[3];
-  int n_axes = 0;
-  if (shape.type == ShapeType::Capsule && shape.half_length > 0.0) {
-    axes[0] = core.R_MB.col(2);
-    halves[0] = shape.half_length;
-    n_axes = 1;
-  } else if (shape.type == ShapeType::Box) {
-    for (int j = 0; j < 3; ++j) {
-      axes[j] = core.R_MB.col(j);
-      halves[j] = shape.half_extents[j];
-    }
-    n_axes = 3;
-  }
-  // Time for a separation s (core to object, along unit w) to shrink to r + η.
-  auto timeBound = [&](double s, const Vec3& w) {
-    const double margin = s - r - eta;
-    if (margin <= 0.0) return 0.0;
-    const double rate = w.dot(dp_M) + rho_c * w.cross(theta_M).norm();
-    return rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
-  };
-  // Lower bound of the time before box b can come within η: the larger of the directional bound
-  // along the first-order separating direction and the box-gap bound at the full speed μ_c.
-  auto boxTime = [&](const Aabb& b, double cutoff) {
-    const double margin_gap = core.gapBound(b) - r - eta;
-    double t_gap = 0.0;
-    if (margin_gap > 0.0) t_gap = mu_c > 0.0 ? margin_gap / mu_c : std::numeric_limits<double>::infinity();
-    if (t_gap >= cutoff) return t_gap;
-    Vec3 u;
-    const double f = core.pointDistance(b.centre(), &u);
-    if (f <= 0.0) return t_gap;
-    return std::max(t_gap, timeBound(f - u.cwiseAbs().dot(0.5 * b.extent()), u));
-  };
-  double best = horizon;
-  int best_index = std::numeric_limits<int>::min();  // none yet
-  Vec3 best_core_B, best_tri_B;
-  std::array<Vec3, 3> best_abc_B;
-  double best_d = 0.0;
-  // Exact time bound of one triangle (corners in M); updates the best.
-  auto visitTriangle = [&](int i, const std::array<Vec3, 3>& v) {
-    const std::array<Vec3, 3> abc_B = {R_BM * (v[0] - X_MB.p), R_BM * (v[1] - X_MB.p), R_BM * (v[2] - X_MB.p)};
-    Vec3 core_B, tri_B;
-    const double d_core = detail::coreTriangle(shape, abc_B[0], abc_B[1], abc_B[2], &core_B, &tri_B);
-    double t_i = 0.0;
-    if (d_core > 0.0) {
-      // Separating direction from the core towards the triangle, frame M (the closest pair's, so
-      // the separation along it is the distance now): the larger of the first-order and the
-      // second-order bound (both are lower bounds of the contact time). A triangle already
-      // within η (a body resting at the sweep's floor) may not come closer by more than
-      // kMinShrink: the body can recede or slide along it, not creep in. (Only here: for boxes
-      // and the pre-check the separation is a lower bound below the distance, so a margin <= 0
-      // there says nothing and they are always visited.)
-      const Vec3 w_M = core.R_MB * ((tri_B - core_B) / d_core);
-      const double margin = std::max(d_core - r - eta, kMinShrink);
-      const double rate = w_M.dot(dp_M) + rho_c * w_M.cross(theta_M).norm();
-      t_i = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
-      if (t_i < best && n_axes > 0)
-        t_i = std::max(t_i, secondOrderTime(margin, w_M, dp_M, theta_M, axes, halves, n_axes, horizon));
-      if (t_i < best && theta_M.squaredNorm() > 0.0) {
-        double support = 0.0;
-        for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(w_M.dot(axes[j]));
-        t_i = std::max(t_i, bodyAxisTime(v, X_MB.p, w_M, support, r + eta, dp_M, theta_M, kMinShrink));
-      }
-    }
-    if (t_i < best) {
-      best = t_i;
-      best_index = i;
-      best_core_B = core_B;
-      best_tri_B = tri_B;
-      best_abc_B = abc_B;
-      best_d = d_core;
-    }
-  };
-  if (hint >= 0 && hint < mesh_.triangleCount()) {
-    visitTriangle(-1 - hint, {mesh_.vertex(hint, 0), mesh_.vertex(hint, 1), mesh_.vertex(hint, 2)});
-  }
-  int stack[kStackSize];
-  double stack_t[kStackSize];
-  int sp = 0;
-  stack[sp] = 0;
-  stack_t[sp++] = boxTime(nodes_[0].box, best);
-  while (sp > 0) {
-    --sp;
-    if (stack_t[sp] >= best) continue;
-    const Node& node = nodes_[static_cast<size_t>(stack[sp])];
-    if (node.count > 0) {
-      for (int i = node.first; i < node.first + node.count; ++i) {
-        if (boxTime(tri_boxes_[static_cast<size_t>(i)], best) >= best) continue;
-        const auto& v = tri_vertices_[static_cast<size_t>(i)];
-        {
-          // f(c) + min_k u·(v_k − c), u the core distance's gradient at the centroid c, is the
-          // separation of core and triangle along the fixed direction u (u is the core's outward
-          // normal at the point nearest c), so every bound of visitTriangle holds along it too:
-          // the first-order one, then (where that does not settle it) the second-order and the
-          // body-axis ones, which see a turning body's far end recede. Only where the shape is
-          // more than η clear along u (a smaller separation says nothing: the triangle is visited).
-          const Vec3 c = (v[0] + v[1] + v[2]) / 3.0;
-          Vec3 u;
-          const double f = core.pointDistance(c, &u);
-          if (f > 0.0) {
-            const double sep = f + std::min({u.dot(v[0] - c), u.dot(v[1] - c), u.dot(v[2] - c)});
-            double t_u = timeBound(sep, u);
-            const double margin = sep - r - eta;
-            if (t_u < best && margin > 0.0 && n_axes > 0)
-              t_u = std::max(t_u, secondOrderTime(margin, u, dp_M, theta_M, axes, halves, n_axes, horizon));
-            if (t_u < best && margin > 0.0 && theta_M.squaredNorm() > 0.0) {
-              double support = 0.0;
-              for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(u.dot(axes[j]));
-              t_u = std::max(t_u, bodyAxisTime(v, X_MB.p, u, support, r + eta, dp_M, theta_M, 0.0));
-            }
-            if (t_u >= best) continue;
-          }
-        }
-        visitTriangle(i, v);
-      }
-      continue;
-    }
-    const double t_left = boxTime(nodes_[static_cast<size_t>(node.first)].box, best);
-    const double t_right = boxTime(nodes_[static_cast<size_t>(node.right)].box, best);
-    const bool left_first = t_left <= t_right;
-    const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
-    const double far_t = left_first ? t_right : t_left, near_t = left_first ? t_left : t_right;
-    if (far_t < best) { stack[sp] = far_node; stack_t[sp++] = far_t; }
-    if (near_t < best) { stack[sp] = near_node; stack_t[sp++] = near_t; }
-  }
-  if (best_index != std::numeric_limits<int>::min()) {
-    // best_index ≥ 0: position in order_; < 0: the hint, encoded −1 − triangle.
-    limiting->triangle = best_index >= 0 ? order_[static_cast<size_t>(best_index)] : -1 - best_index;
-    limiting->closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, best_d, best_core_B, best_tri_B,
-                                                    best_abc_B[0], best_abc_B[1], best_abc_B[2]);
-  }
-  return best;
+  return std::max(0.0, horizon);
 }
 
 double MeshBvh::windingNumber(const Vec3& p_M) const {
@@ -656,13 +847,14 @@ double MeshBvh::windingNumber(const Vec3& p_M) const {
   while (sp > 0) {
     const int index = stack[--sp];
     const Node& node = nodes_[static_cast<size_t>(index)];
-    const Vec3 r = node.dipole_centre - p_M;
+    const NodeDipole& dipole = dipoles_[static_cast<size_t>(index)];
+    const Vec3 r = dipole.centre - p_M;
     const double dist2 = r.squaredNorm();
-    if (dist2 > kWindingBeta * kWindingBeta * node.radius * node.radius) {
+    if (dist2 > kWindingBeta * kWindingBeta * dipole.radius * dipole.radius) {
       // Far field (see bvh.h): dipole N·r/|r|³ plus the second-order moment term.
       const Mat3& M = dipole_moment_[static_cast<size_t>(index)];
       const double inv3 = 1.0 / (dist2 * std::sqrt(dist2));
-      omega += inv3 * (r.dot(node.dipole_normal) + M.trace() - 3.0 * r.dot(M * r) / dist2);
+      omega += inv3 * (r.dot(dipole.normal) + M.trace() - 3.0 * r.dot(M * r) / dist2);
     } else if (node.count > 0) {
       for (int i = node.first; i < node.first + node.count; ++i) {
         const auto& v = tri_vertices_[static_cast<size_t>(i)];

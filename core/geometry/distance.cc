@@ -74,14 +74,23 @@ inline bool inPrism(const Vec3& x, const Vec3& a, const Vec3& b, const Vec3& c, 
          (a - c).cross(x - c).dot(n) >= 0.0;
 }
 
+/// What every point query against triangle abc needs of it, computed once per triangle (a box
+/// measures its 8 corners against it, a segment its 2 ends).
+struct TriangleFrame {
+  Vec3 ab, bc, ca;  ///< edges b − a, c − b, a − c
+  Vec3 n;           ///< (b − a) × (c − a)
+  bool proper;      ///< nonDegenerate
+  TriangleFrame(const Vec3& a, const Vec3& b, const Vec3& c)
+      : ab(b - a), bc(c - b), ca(a - c), n(ab.cross(c - a)), proper(nonDegenerate(n, a, b, c)) {}
+};
+
 /// Squared point–triangle distance. Face region if the projection falls inside the triangle,
 /// otherwise the nearest of the edges whose half-plane test failed (the closest boundary point
 /// always lies on such an edge); degenerate triangles: nearest of all three edges.
-double pointTriangleSq(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, Vec3* q) {
-  const Vec3 ab = b - a, bc = c - b, ca = a - c;
-  const Vec3 n = ab.cross(c - a);
+double pointTriangleSq(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, const TriangleFrame& f, Vec3* q) {
+  const Vec3 &ab = f.ab, &bc = f.bc, &ca = f.ca, &n = f.n;
   Vec3 tmp;
-  if (nonDegenerate(n, a, b, c)) {
+  if (f.proper) {
     const bool in_ab = ab.cross(p - a).dot(n) >= 0.0;
     const bool in_bc = bc.cross(p - b).dot(n) >= 0.0;
     const bool in_ca = ca.cross(p - c).dot(n) >= 0.0;
@@ -105,13 +114,18 @@ double pointTriangleSq(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& 
   return best;
 }
 
+double pointTriangleSq(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c, Vec3* q) {
+  return pointTriangleSq(p, a, b, c, TriangleFrame(a, b, c), q);
+}
+
 /// Segment p0p1 – triangle: 0 if the segment crosses the triangle, else the nearest of
 /// endpoints-vs-triangle and segment-vs-edges (a complete feature enumeration for two convex sets
 /// that do not intersect).
 double segmentTriangleSq(const Vec3& p0, const Vec3& p1, const Vec3& a, const Vec3& b, const Vec3& c, Vec3* core,
                          Vec3* tri) {
-  const Vec3 n = (b - a).cross(c - a);
-  if (nonDegenerate(n, a, b, c)) {
+  const TriangleFrame frame(a, b, c);
+  const Vec3& n = frame.n;
+  if (frame.proper) {
     const double s0 = n.dot(p0 - a), s1 = n.dot(p1 - a);
     if (((s0 <= 0.0 && s1 >= 0.0) || (s0 >= 0.0 && s1 <= 0.0)) && s0 != s1) {
       const Vec3 x = p0 + (s0 / (s0 - s1)) * (p1 - p0);
@@ -123,9 +137,9 @@ double segmentTriangleSq(const Vec3& p0, const Vec3& p1, const Vec3& a, const Ve
     }
   }
   Vec3 qc, qt;
-  double best = pointTriangleSq(p0, a, b, c, tri);
+  double best = pointTriangleSq(p0, a, b, c, frame, tri);
   *core = p0;
-  double d = pointTriangleSq(p1, a, b, c, &qt);
+  double d = pointTriangleSq(p1, a, b, c, frame, &qt);
   if (d < best) { best = d; *core = p1; *tri = qt; }
   const Vec3* v[3] = {&a, &b, &c};
   for (int i = 0; i < 3; ++i) {
@@ -218,11 +232,12 @@ double boxTriangleSq(const Vec3& e, const Vec3& a, const Vec3& b, const Vec3& c,
   };
   auto skip = [&](double lower_sq) { return lower_sq > best * (1.0 + 1e-6) + 1e-16; };
   // Box vertices vs triangle.
+  const TriangleFrame frame(a, b, c);
   for (int k = 0; k < 8; ++k) {
     const Vec3 v((k & 1) ? e.x() : -e.x(), (k & 2) ? e.y() : -e.y(), (k & 4) ? e.z() : -e.z());
     const double gx = gap(0, v.x(), v.x()), gy = gap(1, v.y(), v.y()), gz = gap(2, v.z(), v.z());
     if (skip(gx * gx + gy * gy + gz * gz)) continue;
-    const double d = pointTriangleSq(v, a, b, c, &qt);
+    const double d = pointTriangleSq(v, a, b, c, frame, &qt);
     if (d < best) { best = d; *core = v; *tri = qt; }
   }
   // Triangle vertices vs box.
