@@ -14,6 +14,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -68,6 +69,10 @@ class MeshBvh {
   /// side). Meshes are solid unless the scene loader found them open (classifySurface).
   bool inside(const Vec3& p_M) const { return solid_ && windingNumber(p_M) > 0.5; }
   bool solid() const { return solid_; }
+  /// Per edge (3 t + e, the edge from corner e to e + 1): 1 where it is a crease (its two
+  /// triangles more than 1° apart, or more than two meet), 0 inside a flat region or on a
+  /// boundary (a hole, a crack, an open surface's rim). Built with the hierarchy.
+  const std::vector<std::uint8_t>& creases() const { return creases_; }
   void setSolid(bool solid) { solid_ = solid; }
 
  private:
@@ -88,6 +93,7 @@ class MeshBvh {
   TriangleMesh mesh_;
   Aabb bounds_;
   bool solid_ = true;
+  std::vector<std::uint8_t> creases_;
   std::vector<Node> nodes_;       ///< depth-first: an inner node's left child follows it
   std::vector<NodeDipole> dipoles_;  ///< per node, indexed like nodes_
   std::vector<int> order_;  ///< triangle indices, grouped by leaf

@@ -178,42 +178,6 @@ geo::Aabb sweptBox(const Vec3& a, const Vec3& b, double r) {
 }
 }  // namespace
 
-const std::vector<std::uint8_t>& CollisionWorld::creases(int object) const {
-  std::vector<std::uint8_t>& out = creases_[static_cast<size_t>(object)];
-  const geo::TriangleMesh& mesh = objects_[static_cast<size_t>(object)].god->mesh();
-  const size_t nt = static_cast<size_t>(mesh.triangleCount());
-  if (out.size() == 3 * nt) return out;
-  // Edge e of triangle t (from corner e to e + 1) is a crease where two triangles meet at an
-  // angle (normals more than 1° apart) or more than two meet. An edge of one triangle (a hole, a
-  // crack, an open surface's rim) is not: a crack in a flat face must not tilt its rows (seen: a
-  // cracked cube, 30 of 166 windows frozen).
-  constexpr double kFlatCos = 0.9998476951563913;  // cos 1°
-  std::vector<std::array<std::uint64_t, 2>> keys;  // (vertex pair, 3 t + e)
-  keys.reserve(3 * nt);
-  for (size_t t = 0; t < nt; ++t)
-    for (int e = 0; e < 3; ++e) {
-      const std::uint64_t a = static_cast<std::uint32_t>(mesh.triangles[t][static_cast<size_t>(e)]);
-      const std::uint64_t b = static_cast<std::uint32_t>(mesh.triangles[t][static_cast<size_t>((e + 1) % 3)]);
-      keys.push_back({std::min(a, b) << 32 | std::max(a, b), 3 * t + static_cast<size_t>(e)});
-    }
-  std::sort(keys.begin(), keys.end());
-  auto normal = [&mesh](size_t t) {
-    const int ti = static_cast<int>(t);
-    const Vec3 n = (mesh.vertex(ti, 1) - mesh.vertex(ti, 0)).cross(mesh.vertex(ti, 2) - mesh.vertex(ti, 0));
-    const double len = n.norm();
-    return len > 0.0 ? Vec3(n / len) : Vec3::Zero();
-  };
-  out.assign(3 * nt, 1);
-  for (size_t i = 0; i < keys.size();) {
-    size_t j = i + 1;
-    while (j < keys.size() && keys[j][0] == keys[i][0]) ++j;
-    if (j - i == 1 || (j - i == 2 && normal(keys[i][1] / 3).dot(normal(keys[i + 1][1] / 3)) > kFlatCos))
-      for (size_t k = i; k < j; ++k) out[keys[k][1]] = 0;
-    i = j;
-  }
-  return out;
-}
-
 CollisionWorld::CollisionWorld(const Scene& scene) {
   objects_.reserve(scene.objects.size());
   union_box_.resize(scene.objects.size());
@@ -222,7 +186,6 @@ CollisionWorld::CollisionWorld(const Scene& scene) {
   is_moved_.assign(scene.objects.size(), 0);
   moved_.reserve(scene.objects.size());
   costs_.resize(scene.objects.size());
-  creases_.resize(scene.objects.size());
   for (const SceneObject& so : scene.objects) {
     Object o;
     o.god = so.god.get();
@@ -472,7 +435,7 @@ int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body
     if (near_.empty()) continue;
     if (!inside && shape.type == ShapeType::Box && sample_[0] == 0) {
       geo::NearTriangle patch[kMaxPatch];
-      const int np = facePatch(shape, X_OB, near_[0], o.god->mesh(), creases(object), range, spread, cos_same, patch);
+      const int np = facePatch(shape, X_OB, near_[0], o.god->mesh(), o.god->creases(), range, spread, cos_same, patch);
       for (int i = 0; i < np; ++i) {
         near_.push_back(patch[i]);
         sample_.push_back(kPatchSample + i);

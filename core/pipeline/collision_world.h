@@ -154,11 +154,7 @@ class CollisionWorld {
     bool dynamic = false;
   };
   bool insideGod(const Object& o, const Pose& X_OB) const;
-  /// Per edge of the object's God mesh (3 t + e): 1 where it is a crease (its two triangles
-  /// more than 1° apart, or a non-manifold edge), 0 inside a flat region or on a boundary. Built
-  /// at the first call (box-face contact patches ask it).
-  const std::vector<std::uint8_t>& creases(int object) const;
-  mutable std::vector<std::vector<std::uint8_t>> creases_;
+
   void place(size_t object, const Pose& X_WO);
   double nearest(bool reference, const Shape& shape, const Pose& X_WB, double range) const;
 
