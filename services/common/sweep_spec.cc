@@ -45,6 +45,24 @@ SweepSpec parseSweepSpec(const std::string& text, const std::string& source) {
     const auto loc = tree.GetLocation(f_knobs, i);
     return loc.line >= 0 ? loc.line + 1 : 1;
   };
+  // An option as a message shows it: one line, control bytes escaped (\n, \xNN).
+  auto shown = [](const std::string& o) {
+    std::string out;
+    for (const unsigned char c : o) {
+      if (c == '\n') out += "\\n";
+      else if (c < 0x20 || c == 0x7f) {
+        char b[8];
+        std::snprintf(b, sizeof b, "\\x%02x", c);
+        out += b;
+      } else out += static_cast<char>(c);
+    }
+    return out;
+  };
+  auto printable = [](const std::string& o) {
+    for (const unsigned char c : o)
+      if (c <= 0x20 || c == 0x7f) return false;
+    return true;
+  };
   SweepSpec spec;
   spec.product = msg.mode() == pb::SweepGrid::PRODUCT;
   if (msg.knobs_size() == 0) throw SweepSpecError(source + ":1: knobs: a sweep grid needs at least one knob");
@@ -52,8 +70,8 @@ SweepSpec parseSweepSpec(const std::string& text, const std::string& source) {
   for (int i = 0; i < msg.knobs_size(); ++i) {
     const pb::SweepKnob& k = msg.knobs(i);
     const std::string at = source + ":" + std::to_string(lineOf(i)) + ": knobs[" + std::to_string(i) + "]";
-    if (k.option().size() < 3 || k.option().compare(0, 2, "--") != 0 || k.option().find(' ') != std::string::npos)
-      throw SweepSpecError(at + ".option: '" + k.option() + "' is not a godhand-bench option (--NAME)");
+    if (k.option().size() < 3 || k.option().compare(0, 2, "--") != 0 || !printable(k.option()))
+      throw SweepSpecError(at + ".option: '" + shown(k.option()) + "' is not a godhand-bench option (--NAME)");
     if (!seen.insert(k.option()).second) throw SweepSpecError(at + ".option: " + k.option() + " appears twice");
     if (k.values_size() == 0) throw SweepSpecError(at + ".values: " + k.option() + " has no values");
     std::vector<std::string> values;

@@ -44,6 +44,12 @@ TEST(SweepSpec, BadGridsAreOneLineWithTheirLine) {
   EXPECT_EQ(errorOf("knobs { option: \"--a\" values: \"1\" }\nknobs { option: \"--a\" values: \"2\" }"),
             "g.pbtxt:2: knobs[1].option: --a appears twice");
   EXPECT_EQ(errorOf("knobs { option: \"--a\" }"), "g.pbtxt:1: knobs[0].values: --a has no values");
+  // An option with a line break or a control byte: refused, shown escaped on one line (a fuzz
+  // finding: the message carried the raw newline).
+  EXPECT_EQ(errorOf("knobs { option: \"-nd-model a\\nb\" values: \"4\" }"),
+            "g.pbtxt:1: knobs[0].option: '-nd-model a\\nb' is not a godhand-bench option (--NAME)");
+  EXPECT_EQ(errorOf("knobs { option: \"--a\\tb\" values: \"4\" }"),
+            "g.pbtxt:1: knobs[0].option: '--a\\x09b' is not a godhand-bench option (--NAME)");
   EXPECT_EQ(errorOf("knobs { option: \"--a\" values: \" \" }"), "g.pbtxt:1: knobs[0].values: --a has an empty value");
   const std::string syntax = errorOf("knobs { option: --a }");
   EXPECT_EQ(syntax.rfind("g.pbtxt:1:", 0), 0u) << syntax;
