@@ -251,9 +251,10 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
   // limit rows (A_kk ~ 1e5-1e7); the stalled solution turned the palm by 0.3 rad with the
   // coupling scaled to 1e-3, the sweep refused it round after round and the hand froze. Solved
   // again without the limit rows (cold: the rows are renumbered); the projection then restores
-  // any violated limit. Flagged and counted. Before the rotation caps below: a stalled
-  // solution's rotation is no measure of the motion (seen: a palm across a square bar, capped to
-  // a scale of 1.5e-4 from the stalled solution and frozen for 157 frames).
+  // any violated limit. Flagged and counted. Done before the rotation caps below too (a stalled
+  // solution's rotation is no measure of the motion the caps should scale) and again after their
+  // re-solve. (Tried as the cure of a palm frozen across a square bar, whose coupling the caps
+  // scaled to 1.5e-4: it was not; the bar needed the patch's line clip in collision_world.cc.)
   auto dropLimitsIfStalled = [&] {
     if (!(report_.solve.status == SolveStatus::Stalled && report_.limit_rows > 0)) return;
     qp_.clearRows();
