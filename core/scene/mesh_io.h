@@ -82,8 +82,8 @@ geo::Aabb meshBounds(const geo::TriangleMesh& mesh);
 double signedVolume(const geo::TriangleMesh& mesh);
 
 /// Whether the winding number of a mesh decides inside and outside next to its surface: at the
-/// centroids of up to `samples` triangles (every (T/samples)-th, largest-area first within each
-/// stride), the points ε = 1e-6 · (bounding-box diagonal) behind and in front of the face. A closed
+/// centroids of up to `samples` triangles (the largest of each of `samples` equal runs of the
+/// triangle list), the points ε = 1e-6 · (bounding-box diagonal) behind and in front of the face. A closed
 /// outward-facing surface gives w ≈ 1 behind and ≈ 0 in front; one facing inwards ≈ 0 and ≈ −1;
 /// an open surface (a bowl, a panel) gives neither (a bowl's cavity has 0.5 < w < 1: it would
 /// read as inside the bowl). "≈" is within 0.1; small holes leave most samples decided.
@@ -96,7 +96,8 @@ struct SurfaceVerdict {
   /// Solid: ≥ 90 % outward; Inverted: ≥ 90 % inward; else Shell.
   static constexpr double kDecided = 0.9;
   static constexpr double kTolerance = 0.1;
-  /// One phrase for load reports, e.g. "open surface (31 of 256 samples decided): a thin shell".
+  /// One phrase for load reports, e.g. "open surface (inside/outside decided at 0 of 256 surface
+  /// samples): a thin shell, touched from either side, no inside".
   std::string describe() const;
 };
 SurfaceVerdict classifySurface(const geo::MeshBvh& bvh, int samples = 256);
