@@ -20,8 +20,10 @@
 // Start and re-acquisition (METHOD.md §2 step 7): a hand seen for the first time starts at its
 // target if that is free, else lifted straight up (+z, doubling from 1 cm) to the first free pose,
 // from which the normal steps (with CCD) bring it down to the surface. A hand that loses tracking
-// is frozen where it is and reported untracked; when it is tracked again it moves on from there
-// (the sweep clips that motion like any other: it never teleports through an object).
+// is frozen where it is and reported untracked; when it is tracked again within
+// PipelineParams::reacquire_after it moves on from there, after a longer loss it starts again as
+// above; either way the motion from where it was is swept (the resolver sweeps a new start from
+// the last result), so it never teleports through an object.
 //
 // The pipeline is the three stages of stages.h called in order (every HandSolver, the Resolver,
 // the SceneStage), the structs they exchange passed by reference: the distributed services run
@@ -72,6 +74,7 @@ struct PipelineCounters {
   std::uint64_t sweeps = 0, sweep_iterations = 0, sweeps_capped = 0;  ///< the solvers' (SolverCounters)
   std::uint64_t per_body_clips = 0, uniform_clips = 0, sweeps_certified = 0, held_rounds = 0;
   std::uint64_t rounds_shortened = 0, rounds_kept = 0;  ///< the solvers' (SolverCounters)
+  std::uint64_t reacquisitions = 0;                    ///< the solvers' (SolverCounters)
 };
 
 class Pipeline {

@@ -75,6 +75,7 @@ void PipelineParams::validate() const {
   require(finiteNonNeg(start_clearance), "start_clearance must be >= 0");
   require(std::isfinite(max_start_shift) && max_start_shift > 0.0, "max_start_shift must be > 0");
   require(std::isfinite(stuck_rotation) && stuck_rotation >= 0.0, "stuck_rotation must be >= 0 (0 = off)");
+  require(reacquire_after >= 0.0, "reacquire_after must be >= 0 (s; +inf = never)");
   require(threads >= 1 && threads <= 64, "threads must be in [1, 64]");
   require(body_threads >= 1 && body_threads <= 64, "body_threads must be in [1, 64]");
 }
@@ -252,6 +253,11 @@ bool HandSolver::start(const HandInput& in) {
   }
   for (Pose& X : X_start_) X.p += shift;
   stepper_->reset(X_start_);
+  // Nothing of a former life (a re-acquisition) carries over: no stuck caps, no blocked bodies,
+  // no clearance certificate.
+  std::fill(rotation_cap_.begin(), rotation_cap_.end(), std::numeric_limits<double>::infinity());
+  std::fill(blocked_.begin(), blocked_.end(), 0);
+  std::fill(clear_reach_.begin(), clear_reach_.end(), -1.0);
   started_ = true;
   last_errors_ = jointErrors(model_, X_start_.data());
   return true;
@@ -459,6 +465,13 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
   p.swept = false;
   ++counters_.steps;
   if (p.tracked && !started_) start(in);
+  // Re-acquisition after a loss: a new start (kept where the hand was if nowhere is free).
+  if (p.tracked && started_ && untracked_steps_ > 0 &&
+      static_cast<double>(untracked_steps_) * params_.step.dt >= params_.reacquire_after && start(in)) {
+    ++counters_.reacquisitions;
+    if (trace_ >= 1) emit(params_, "trace: frame %llu re-acquired after %d untracked steps\n", static_cast<unsigned long long>(frame), untracked_steps_);
+  }
+  untracked_steps_ = p.tracked ? 0 : started_ ? untracked_steps_ + 1 : 0;
   p.started = started_;
   p.X_old = stepper_->poses();
   if (!p.tracked || !started_) {  // frozen: no step, no contacts, no forces

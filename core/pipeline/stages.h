@@ -72,6 +72,12 @@ struct PipelineParams {
   /// unstarted, reported): a mesh that encloses the tracking volume (a CAD part in millimetres
   /// read as metres) has its nearest way out metres away, where the user would never see it.
   double max_start_shift = 0.5;
+  /// s: a hand tracked again after it was lost for at least this long starts again (METHOD.md §2
+  /// step 7: at its targets where they are free, else at the nearest free pose) instead of
+  /// gliding from where it was lost at the motion clamp's pace; the resolver sweeps that jump from
+  /// the last result, so it never passes through an object. Shorter losses (a dropped frame in a
+  /// grasp) go on from where the hand was. 0 = every loss; +inf = never.
+  double reacquire_after = 0.1;
   /// Solve -> sweep rounds per frame (Ortega et al., Redon; METHOD.md §2 step 5): after a clip
   /// the contacts at the clipped pose are found and the rest of the motion towards the same
   /// targets is solved and swept again, at most this many rounds in all.
@@ -207,6 +213,9 @@ struct SceneSnapshot {
 
 struct SolverCounters {
   std::uint64_t steps = 0, lifted_starts = 0, solver_failures = 0, inexact_solves = 0;
+  /// Starts again after a loss of at least PipelineParams::reacquire_after (of those, the lifted
+  /// ones are counted in lifted_starts too).
+  std::uint64_t reacquisitions = 0;
   /// Rounds whose motion was halved because its projection opened the joints, and of those the
   /// ones that kept the previous state (ClusterStepper::kShortenings halvings did not close).
   std::uint64_t rounds_shortened = 0, rounds_kept = 0;
@@ -298,6 +307,7 @@ class HandSolver {
   std::vector<geo::SweepResult> body_sweeps_;           // per body
   std::vector<unsigned char> certified_;                // per body: clearOf its motion (no query)
   bool started_ = false;
+  int untracked_steps_ = 0;  // steps since the started hand was last tracked
   std::uint64_t scene_frame_ = 0, scene_step_ = 0;
   JointErrors last_errors_;
   std::vector<Contact> contacts_;

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <deque>
 #include <fstream>
 #include <iostream>
@@ -96,6 +97,9 @@ const char* kUsage =
     "  --threads N           threads of the in-process run (default: the cores): the hands' solvers at\n"
     "                        once, and the threads left over per hand spread its bodies' contact and sweep\n"
     "                        queries (1: everything one after the other). The results are the same for every N\n"
+    "  --reacquire-after S   a hand tracked again after a loss of at least S seconds starts again at its\n"
+    "                        targets (or the nearest free pose), the jump swept from where it was lost;\n"
+    "                        shorter losses go on from there (default 0.1; inf = never)\n"
     "  --stuck-rotation RAD  a body whose last sweep hit at once may turn at most RAD in its next step\n"
     "                        (default 0.05; 0 = no cap)\n"
     "  --contact-rotation R  most a body within 5 mm of a contact turns per frame, rad (default %CONTACT_ROT%)\n"
@@ -153,6 +157,7 @@ struct Args {
   std::string compare;  // "" or "mujoco"
   double mj_timestep = 0.002, mj_weld = 0.02, mj_contact = 0.02;
   double stuck_rotation = PipelineParams{}.stuck_rotation;
+  double reacquire_after = PipelineParams{}.reacquire_after;
   double contact_rotation = PipelineParams{}.step.max_step_rotation_in_contact;
   double max_rotation = PipelineParams{}.step.max_step_rotation;
   int per_pair = PipelineParams{}.contacts.per_pair;
@@ -245,6 +250,10 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--mujoco-weld-timeconst") a.mj_weld = parseDouble(f, value(), 1e-5, 10.0);
     else if (f == "--mujoco-contact-timeconst") a.mj_contact = parseDouble(f, value(), 1e-5, 10.0);
     else if (f == "--stuck-rotation") a.stuck_rotation = parseDouble(f, value(), 0.0, 10.0);
+    else if (f == "--reacquire-after") {
+      const std::string v = value();
+      a.reacquire_after = v == "inf" ? std::numeric_limits<double>::infinity() : parseDouble(f, v, 0.0, 3600.0);
+    }
     else if (f == "--check") a.check = true;
     else fail("unknown argument '" + f + "' (see --help)");
   }
@@ -376,6 +385,7 @@ int main(int argc, char** argv) {
   params.simulate = args.physics;
   params.max_substeps = args.substeps;
   params.stuck_rotation = args.stuck_rotation;
+  params.reacquire_after = args.reacquire_after;
   params.step.max_step_rotation_in_contact = args.contact_rotation;
   params.step.max_step_rotation = args.max_rotation;
   params.step.max_step_translation = args.max_translation;
@@ -583,11 +593,12 @@ int main(int argc, char** argv) {
               margin * 1e3, all.joint_gap_max_m);
   for (const HandSummary& hs : sum.hands) std::printf("  %s\n", describe(hs).c_str());
   std::printf("  clipped %llu hand-frames (TOC < 1e-3 in %llu), solve -> sweep rounds %llu (max %llu in a frame); "
-              "contacts max %d, KKT max %.1e, solver failures %llu, inexact solves %llu, lifted starts %llu, scene push-outs %llu (%llu objects left squeezed, put back)\n",
+              "contacts max %d, KKT max %.1e, solver failures %llu, inexact solves %llu, lifted starts %llu, re-acquisitions after a loss %llu, scene push-outs %llu (%llu objects left squeezed, put back)\n",
               static_cast<unsigned long long>(all.clipped_frames), static_cast<unsigned long long>(all.toc_below_1e3),
               static_cast<unsigned long long>(all.substeps), static_cast<unsigned long long>(all.substeps_max), contacts_max,
               kkt_max, static_cast<unsigned long long>(c.solver_failures), static_cast<unsigned long long>(c.inexact_solves),
-              static_cast<unsigned long long>(c.lifted_starts), static_cast<unsigned long long>(c.scene_pushouts),
+              static_cast<unsigned long long>(c.lifted_starts), static_cast<unsigned long long>(c.reacquisitions),
+              static_cast<unsigned long long>(c.scene_pushouts),
               static_cast<unsigned long long>(c.pushout_restored));
   std::printf("  sweeps %llu (%llu answered without a query), conservative-advancement iterations %llu (%.2f per sweep), "
               "%llu stopped at the iteration bound; "
@@ -661,6 +672,7 @@ int main(int argc, char** argv) {
     j["rounds_kept"] = c.rounds_kept;
     j["clipped_steps"] = c.clipped_steps;
     j["lifted_starts"] = c.lifted_starts;
+    j["reacquisitions"] = c.reacquisitions;
     j["started_inside"] = c.started_inside;
     j["scene_pushouts"] = c.scene_pushouts;
     j["scene_pushouts_unresolved"] = c.pushout_unresolved;

@@ -155,6 +155,74 @@ TEST(Pipeline, LostHandIsFrozenAndReacquiredWithoutTunnelling) {
   pipe.step(in);
   EXPECT_LT(pipe.poses(0)[0].p.x(), -0.002 - 0.01) << "teleported through the wall";
   EXPECT_EQ(pipe.penetration(0), 0.0);
+  // Lost for longer than reacquire_after: a new start at the target, but the jump there from
+  // where the hand was is swept (by the resolver) and the wall stops it.
+  target = at(-0.05, 0, 0);
+  for (int k = 0; k < 20; ++k) pipe.step(in);
+  ASSERT_LT(pipe.poses(0)[0].p.x(), -0.04);
+  for (int k = 0; k < 150; ++k) pipe.step(lost);  // 0.15 s at 1 kHz
+  target = at(0.05, 0, 0);
+  pipe.step(in);
+  EXPECT_EQ(pipe.counters().reacquisitions, 1u);
+  EXPECT_LT(pipe.poses(0)[0].p.x(), -0.002 - 0.01) << "a new start jumped through the wall";
+  EXPECT_EQ(pipe.penetration(0), 0.0);
+  for (int k = 0; k < 10; ++k) {
+    pipe.step(in);
+    ASSERT_EQ(pipe.penetration(0), 0.0);
+    ASSERT_LT(pipe.poses(0)[0].p.x(), -0.002 - 0.01 + 1e-6);
+  }
+}
+
+// A loss of at least reacquire_after ends in a new start (METHOD.md §2 step 7): where the targets
+// are free the hand is at them in its first frame back, not gliding there at the motion clamp's
+// pace (0.03 m per frame); where they are inside an object, at the nearest free pose above them.
+TEST(Pipeline, ALongLossEndsInANewStartAtTheTargetsOrAboveThem) {
+  // Table top at z = 0.
+  Scene scene = sceneOf({boxObject("table", Vec3(0.5, 0.5, 0.05), at(0, 0, -0.05), 0.0)});
+  const HandModel probe = probeModel("sphere { radius: 0.01 }");
+  const double dt = 0.02;  // 50 Hz, as a Leap recording
+  Pipeline pipe(scene, {&probe}, paramsFor(dt));
+  Pose target = at(0, 0, -0.005);  // pressed 15 mm into the table: the God sphere rests on it
+  std::vector<HandInput> in{{true, &target, nullptr}};
+  for (int k = 0; k < 20; ++k) pipe.step(in);
+  ASSERT_NEAR(pipe.poses(0)[0].p.z(), 0.01, 2e-4);
+  const std::vector<HandInput> lost{{false, nullptr, nullptr}};
+  for (int k = 0; k < 6; ++k) pipe.step(lost);  // 0.12 s
+  EXPECT_EQ(pipe.counters().reacquisitions, 0u);
+  target = at(0.12, 0.05, 0.06);  // 14 cm away, in free space
+  pipe.step(in);
+  EXPECT_EQ(pipe.counters().reacquisitions, 1u);
+  EXPECT_LT((pipe.poses(0)[0].p - target.p).norm(), 1e-9) << "glided instead of starting again";
+  EXPECT_EQ(pipe.penetration(0), 0.0);
+  // Lost again, back inside the table 10 cm on: a start above that target, not at the old place.
+  for (int k = 0; k < 6; ++k) pipe.step(lost);
+  target = at(0.22, 0.05, -0.004);
+  pipe.step(in);
+  EXPECT_EQ(pipe.counters().reacquisitions, 2u);
+  EXPECT_EQ(pipe.penetration(0), 0.0);
+  const Vec3 p = pipe.poses(0)[0].p;
+  EXPECT_NEAR(p.x(), 0.22, 1e-6);
+  EXPECT_NEAR(p.y(), 0.05, 1e-6);
+  EXPECT_GE(p.z(), 0.01);
+  EXPECT_LT(p.z(), 0.012) << "started higher than the nearest free pose";
+}
+
+// A short loss (a dropped frame or two) goes on from where the hand was, clamped as any motion.
+TEST(Pipeline, AShortLossGoesOnFromWhereTheHandWas) {
+  Scene scene = sceneOf({boxObject("table", Vec3(0.5, 0.5, 0.05), at(0, 0, -0.05), 0.0)});
+  const HandModel probe = probeModel("sphere { radius: 0.01 }");
+  Pipeline pipe(scene, {&probe}, paramsFor(0.02));
+  Pose target = at(0, 0, 0.03);
+  std::vector<HandInput> in{{true, &target, nullptr}};
+  for (int k = 0; k < 5; ++k) pipe.step(in);
+  const std::vector<HandInput> lost{{false, nullptr, nullptr}};
+  for (int k = 0; k < 4; ++k) pipe.step(lost);  // 0.08 s < reacquire_after
+  target = at(0.12, 0, 0.03);
+  pipe.step(in);
+  EXPECT_EQ(pipe.counters().reacquisitions, 0u);
+  // The motion clamp's 3 cm per round, max_substeps rounds, from where it was.
+  const PipelineParams defaults = paramsFor(0.02);
+  EXPECT_NEAR(pipe.poses(0)[0].p.x(), defaults.max_substeps * defaults.step.max_step_translation, 1e-9);
 }
 
 // A probe pushing a light dynamic box on a table moves it in the push direction, without
