@@ -6,7 +6,7 @@ participants on the shipped loopback profile) in its own DDS domain, bounds ever
 that nothing is left behind: no process of its domain, no new shared-memory segment.
 
 usage: distributed.py CASE BIN_DIR DEPLOY_DIR DOMAIN [args]
-cases: same-hash RECORDING | live RECORDING | kill SERVICE RECORDING | rejects | loopback RECORDING |
+cases: same-hash RECORDING | same-hash-after-loss RECORDING | live RECORDING | kill SERVICE RECORDING | rejects | loopback RECORDING |
        drills RECORDING | freeze SERVICE RECORDING | freeze-restart SERVICE RECORDING | startup-remote |
        lockstep-fail RECORDING | two-labs RECORDING | profiles-qos | hand-kill SERVICE RECORDING
 """
@@ -97,6 +97,27 @@ def case_same_hash(recording):
               f"lock-step {name}: every frame delivered fresh ({c})")
     delivery_checks(j)
     common_checks(j)
+
+
+def case_same_hash_after_loss(recording):
+    """The right hand of a two-hand Leap recording is cut out of 30 frames (0.6 s): tracked again, it
+    starts anew (PipelineParams::reacquire_after); the distributed lock-step run must make the same
+    new start, with the jump swept by the resolver, and give the in-process hash."""
+    rec = json.load(open(recording))
+    cut = 0
+    for f in rec["frames"][100:130]:
+        right = {h["id"] for h in f.get("hands", []) if h.get("type") == "right"}
+        cut += len(right)
+        f["hands"] = [h for h in f.get("hands", []) if h["id"] not in right]
+        f["pointables"] = [q for q in f.get("pointables", []) if q.get("handId") not in right]
+    check(cut == 30, f"the right hand was cut out of 30 frames ({cut})")
+    path = os.path.join(TMP, "lost-right.json")
+    json.dump(rec, open(path, "w"))
+    bench_json = os.path.join(TMP, "bench-loss.json")
+    r = run([os.path.join(BIN, "godhand-bench"), "--recording", path, "--quiet", "--json", bench_json], 300)
+    check(r.returncode == 0, "godhand-bench ran")
+    check(json.load(open(bench_json)).get("reacquisitions", 0) >= 1, "the bench run started the right hand anew")
+    case_same_hash(path)
 
 
 def case_lab_tracker(recording):
@@ -568,6 +589,8 @@ shm_before = shm()
 try:
     if CASE == "same-hash":
         case_same_hash(ARGS[0])
+    elif CASE == "same-hash-after-loss":
+        case_same_hash_after_loss(ARGS[0])
     elif CASE == "live":
         case_live(ARGS[0])
     elif CASE == "kill":
