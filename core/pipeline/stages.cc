@@ -75,6 +75,8 @@ void PipelineParams::validate() const {
   require(finiteNonNeg(start_clearance), "start_clearance must be >= 0");
   require(std::isfinite(max_start_shift) && max_start_shift > 0.0, "max_start_shift must be > 0");
   require(std::isfinite(stuck_rotation) && stuck_rotation >= 0.0, "stuck_rotation must be >= 0 (0 = off)");
+  require(max_substeps >= 1 && max_substeps <= 64, "max_substeps must be in [1, 64]");
+  require(max_clamped_rounds >= 1 && max_clamped_rounds <= 64, "max_clamped_rounds must be in [1, 64]");
   require(reacquire_after >= 0.0, "reacquire_after must be >= 0 (s; +inf = never)");
   require(threads >= 1 && threads <= 64, "threads must be in [1, 64]");
   require(body_threads >= 1 && body_threads <= 64, "body_threads must be in [1, 64]");
@@ -544,6 +546,9 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
       // Not clipped. A motion the clamp shortened (StepParams::max_step_*: the rows are linear in
       // the motion) goes on in the next round from here, the rest of the way to the targets, as
       // long as the rest shrinks.
+      if (std::min(free_scale, least_scale) < 1.0 && progressing && !d.clipped &&
+          d.substeps < std::max(params_.max_substeps, params_.max_clamped_rounds))
+        continue;
       if (std::min(free_scale, least_scale) < 1.0 && progressing && d.substeps < params_.max_substeps) continue;
       break;
     }

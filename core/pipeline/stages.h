@@ -82,6 +82,12 @@ struct PipelineParams {
   /// the contacts at the clipped pose are found and the rest of the motion towards the same
   /// targets is solved and swept again, at most this many rounds in all.
   int max_substeps = 3;
+  /// Rounds a frame may take while no round was clipped and only the motion clamp
+  /// (StepParams::max_step_*) shortened the motion, each round gaining on the last (a low-confidence
+  /// Leap hand turning 1.5-3 rad between two 24 fps frames: with 3 rounds the hand in contact and
+  /// its free twin ended the frame 7-12 mm apart in free space). Rounds after a clip stay bounded by
+  /// max_substeps. The larger of the two applies.
+  int max_clamped_rounds = 5;
   /// rad (0 = off): a body whose last sweep hit at once (TOC < 1e-3, from outside) may turn at
   /// most this much in its next solved step (StepInput::rotation_cap): resting on a surface, a
   /// larger turn about its origin swings its contact point into the surface and the whole round

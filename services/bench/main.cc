@@ -97,6 +97,8 @@ const char* kUsage =
     "  --threads N           threads of the in-process run (default: the cores): the hands' solvers at\n"
     "                        once, and the threads left over per hand spread its bodies' contact and sweep\n"
     "                        queries (1: everything one after the other). The results are the same for every N\n"
+    "  --clamped-rounds N    rounds a frame may take while only the motion clamp shortened them (none\n"
+    "                        clipped), each gaining on the last (default 5; the larger of this and --substeps)\n"
     "  --reacquire-after S   a hand tracked again after a loss of at least S seconds starts again at its\n"
     "                        targets (or the nearest free pose), the jump swept from where it was lost;\n"
     "                        shorter losses go on from there (default 0.1; inf = never)\n"
@@ -153,6 +155,7 @@ struct Args {
   long frames = -1;
   int physics_hz = 240;
   int substeps = PipelineParams{}.max_substeps;
+  int clamped_rounds = PipelineParams{}.max_clamped_rounds;
   int threads = 0;  // 0: min(hands, cores)
   std::string compare;  // "" or "mujoco"
   double mj_timestep = 0.002, mj_weld = 0.02, mj_contact = 0.02;
@@ -242,6 +245,7 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--physics-hz") a.physics_hz = static_cast<int>(parseCount(f, value(), 10, 100000));
     else if (f == "--quiet") a.quiet = true;
     else if (f == "--substeps") a.substeps = static_cast<int>(parseCount(f, value(), 1, 64));
+    else if (f == "--clamped-rounds") a.clamped_rounds = static_cast<int>(parseCount(f, value(), 1, 64));
     else if (f == "--threads") a.threads = static_cast<int>(parseCount(f, value(), 1, 64));
     else if (f == "--compare") {
       a.compare = value();
@@ -384,6 +388,7 @@ int main(int argc, char** argv) {
   params.step.pgs.sweeps = args.pgs_iterations;
   params.simulate = args.physics;
   params.max_substeps = args.substeps;
+  params.max_clamped_rounds = args.clamped_rounds;
   params.stuck_rotation = args.stuck_rotation;
   params.reacquire_after = args.reacquire_after;
   params.step.max_step_rotation_in_contact = args.contact_rotation;
@@ -640,6 +645,7 @@ int main(int argc, char** argv) {
     j["solver"] = args.solver == SolverKind::Exact ? "exact" : "pgs";
     j["physics_hz"] = args.physics ? args.physics_hz : 0;
     j["max_substeps"] = args.substeps;
+    j["max_clamped_rounds"] = args.clamped_rounds;
     j["threads"] = params.threads;
     j["body_threads"] = pipe->params().body_threads;
     j["step_us"] = {{"median", median}, {"p99", percentile(step_us, 0.99)}, {"max", percentile(step_us, 1.0)}};

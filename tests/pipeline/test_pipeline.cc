@@ -3,6 +3,7 @@
 // momentum direction, determinism hashes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <memory>
@@ -217,12 +218,36 @@ TEST(Pipeline, AShortLossGoesOnFromWhereTheHandWas) {
   for (int k = 0; k < 5; ++k) pipe.step(in);
   const std::vector<HandInput> lost{{false, nullptr, nullptr}};
   for (int k = 0; k < 4; ++k) pipe.step(lost);  // 0.08 s < reacquire_after
-  target = at(0.12, 0, 0.03);
+  target = at(0.3, 0, 0.03);
   pipe.step(in);
   EXPECT_EQ(pipe.counters().reacquisitions, 0u);
-  // The motion clamp's 3 cm per round, max_substeps rounds, from where it was.
+  // The motion clamp's 3 cm per round, max_clamped_rounds rounds (none clipped), from where it was.
   const PipelineParams defaults = paramsFor(0.02);
-  EXPECT_NEAR(pipe.poses(0)[0].p.x(), defaults.max_substeps * defaults.step.max_step_translation, 1e-9);
+  EXPECT_NEAR(pipe.poses(0)[0].p.x(),
+              std::max(defaults.max_substeps, defaults.max_clamped_rounds) * defaults.step.max_step_translation, 1e-9);
+}
+
+// Rounds that only the motion clamp shortened go on up to max_clamped_rounds (max_substeps bounds
+// the rounds after a clip: stages.cc).
+TEST(Pipeline, ClampedRoundsGoOnFurtherThanClippedOnes) {
+  Scene scene = sceneOf({boxObject("wall", Vec3(0.002, 0.1, 0.1), at(0.2, 0, 0), 0.0)});
+  const HandModel probe = probeModel("sphere { radius: 0.01 }");
+  PipelineParams params = paramsFor(0.02);
+  params.max_substeps = 2;
+  params.max_clamped_rounds = 4;
+  Pipeline pipe(scene, {&probe}, params);
+  Pose target = at(0, 0, 0);
+  std::vector<HandInput> in{{true, &target, nullptr}};
+  pipe.step(in);
+  target = at(0.5, 0, 0);  // far beyond the wall at x = 0.2 (God sphere stops at x = 0.188)
+  const FrameReport& r1 = pipe.step(in);
+  EXPECT_EQ(r1.hands[0].diag.substeps, 4);  // 4 x 3 cm in free space, no clip
+  EXPECT_NEAR(pipe.poses(0)[0].p.x(), 0.12, 1e-9);
+  const FrameReport& r2 = pipe.step(in);  // 3 cm, 3 cm, then the wall's contact row 6.8 cm on
+  EXPECT_LE(r2.hands[0].diag.substeps, 4);
+  EXPECT_EQ(pipe.penetration(0), 0.0);
+  EXPECT_LT(pipe.poses(0)[0].p.x(), 0.2 - 0.002 - 0.01 + 1e-9);
+  EXPECT_GT(pipe.poses(0)[0].p.x(), 0.2 - 0.002 - 0.01 - 2e-4) << "not at the wall";
 }
 
 // A probe pushing a light dynamic box on a table moves it in the push direction, without
