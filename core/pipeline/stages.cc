@@ -473,7 +473,8 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     ++counters_.reacquisitions;
     if (trace_ >= 1) emit(params_, "trace: frame %llu re-acquired after %d untracked steps\n", static_cast<unsigned long long>(frame), untracked_steps_);
   }
-  untracked_steps_ = p.tracked ? 0 : started_ ? untracked_steps_ + 1 : 0;
+  // (Saturating: a lab may run for weeks with one hand away.)
+  untracked_steps_ = p.tracked || !started_ ? 0 : std::min(untracked_steps_, kUntrackedCap - 1) + 1;
   p.started = started_;
   p.X_old = stepper_->poses();
   if (!p.tracked || !started_) {  // frozen: no step, no contacts, no forces

@@ -313,7 +313,8 @@ class HandSolver {
   std::vector<geo::SweepResult> body_sweeps_;           // per body
   std::vector<unsigned char> certified_;                // per body: clearOf its motion (no query)
   bool started_ = false;
-  int untracked_steps_ = 0;  // steps since the started hand was last tracked
+  int untracked_steps_ = 0;  // steps since the started hand was last tracked (saturating)
+  static constexpr int kUntrackedCap = 1 << 30;
   std::uint64_t scene_frame_ = 0, scene_step_ = 0;
   JointErrors last_errors_;
   std::vector<Contact> contacts_;
