@@ -3,11 +3,46 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace godhand {
 
 namespace {
 constexpr double kTiny = 1e-300;
+// x[i] -= col[i] * xj for i = lo … hi: each entry on its own (one product, one difference, as a
+// scalar loop computes them), two at a time where SSE2 is there (baseline x86-64; no FMA).
+inline void subScaled(double* x, const double* col, double xj, int lo, int hi) {
+  int i = lo;
+#if defined(__SSE2__)
+  const __m128d v = _mm_set1_pd(xj);
+  for (; i + 3 <= hi; i += 4) {
+    const __m128d a = _mm_sub_pd(_mm_loadu_pd(x + i), _mm_mul_pd(_mm_loadu_pd(col + i), v));
+    const __m128d b = _mm_sub_pd(_mm_loadu_pd(x + i + 2), _mm_mul_pd(_mm_loadu_pd(col + i + 2), v));
+    _mm_storeu_pd(x + i, a);
+    _mm_storeu_pd(x + i + 2, b);
+  }
+  if (i + 1 <= hi) {
+    _mm_storeu_pd(x + i, _mm_sub_pd(_mm_loadu_pd(x + i), _mm_mul_pd(_mm_loadu_pd(col + i), v)));
+    i += 2;
+  }
+#endif
+  for (; i <= hi; ++i) x[i] -= col[i] * xj;
+}
+// acc − Σ col[i] x[i] over i = lo … hi, subtracted one by one in increasing i (the order fixes
+// the bits); unrolled only.
+inline double subDot(double acc, const double* col, const double* x, int lo, int hi) {
+  int i = lo;
+  for (; i + 3 <= hi; i += 4) {
+    acc -= col[i] * x[i];
+    acc -= col[i + 1] * x[i + 1];
+    acc -= col[i + 2] * x[i + 2];
+    acc -= col[i + 3] * x[i + 3];
+  }
+  for (; i <= hi; ++i) acc -= col[i] * x[i];
+  return acc;
+}
 constexpr double kNoiseUlps = 4.0 * std::numeric_limits<double>::epsilon();  // round-off floor of a slack
 template <class V>
 void growTo(V& v, size_t n) {
@@ -36,6 +71,8 @@ void ActiveSetSolver::reserve(int bodies, int rows) {
   growTo(yE_, m);
   growTo(gb_, m);
   growTo(eq_rows_, 2 * m);
+  growTo(hit_pos_, 2 * m);
+  growTo(hit_row_, 2 * m);
   growTo(eq_start_, static_cast<size_t>(bodies) + 1);
   growTo(dz_, static_cast<size_t>(bodies));
   growTo(absz_, static_cast<size_t>(bodies));
@@ -59,12 +96,29 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
   auto shares = [&row](const Row& a) {
     return a.body0 == row.body0 || a.body0 == row.body1 || (a.body1 >= 0 && (a.body1 == row.body0 || a.body1 == row.body1));
   };
-  int first = n;
+  // One pass over the equality rows of the row's bodies collects the passive ones (position and
+  // row); a row touching both bodies is listed under each and taken once. While the equality
+  // block is built every passive row precedes k, and the lists are sorted by row.
+  int first = n, hits = 0;
+  int* hit_pos = hit_pos_.data();
+  int* hit_row = hit_row_.data();
   for (const int body : {row.body0, row.body1}) {
     if (body < 0) continue;
-    for (int e = eq_start_[static_cast<size_t>(body)]; e < eq_start_[static_cast<size_t>(body) + 1]; ++e) {
-      const int pos = position_[static_cast<size_t>(eq_rows_[static_cast<size_t>(e)])];
-      if (pos >= 0 && pos < n) first = std::min(first, pos);
+    const bool second = body != row.body0 && row.body0 >= 0;
+    const int e_end = eq_start_[static_cast<size_t>(body) + 1];
+    for (int e = eq_start_[static_cast<size_t>(body)]; e < e_end; ++e) {
+      const int r = eq_rows_[static_cast<size_t>(e)];
+      if (building_equalities_ && r >= k) break;
+      const int pos = position_[static_cast<size_t>(r)];
+      if (!(pos >= 0 && pos < n)) continue;
+      if (second) {
+        const Row& a = p.row(r);
+        if (a.body0 == row.body0 || a.body1 == row.body0) continue;  // listed under body0 too
+      }
+      first = std::min(first, pos);
+      hit_pos[hits] = pos;
+      hit_row[hits] = r;
+      ++hits;
     }
   }
   // Passive inequality rows (none while the equality block is built) are all read.
@@ -72,14 +126,7 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
   for (int i = ineq_from; i < first; ++i)
     if (shares(p.row(passive_[static_cast<size_t>(i)]))) { first = i; break; }
   std::fill(x + first, x + n, 0.0);
-  for (const int body : {row.body0, row.body1}) {
-    if (body < 0) continue;
-    for (int e = eq_start_[static_cast<size_t>(body)]; e < eq_start_[static_cast<size_t>(body) + 1]; ++e) {
-      const int r = eq_rows_[static_cast<size_t>(e)];
-      const int pos = position_[static_cast<size_t>(r)];
-      if (pos >= 0 && pos < n) x[pos] = p.A(r, k);
-    }
-  }
+  for (int h = 0; h < hits; ++h) x[hit_pos[h]] = p.A(hit_row[h], k);
   for (int i = std::max(ineq_from, first); i < n; ++i) {
     const Row& a = p.row(passive_[static_cast<size_t>(i)]);
     if (shares(a)) x[i] = p.A(passive_[static_cast<size_t>(i)], k);
@@ -92,8 +139,8 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
     ll += x[j] * x[j];
     const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
     const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
-    for (int i = j + 1; i <= gap_lo; ++i) x[i] -= col[i] * x[j];
-    for (int i = gap_hi; i <= end; ++i) x[i] -= col[i] * x[j];
+    subScaled(x, col, x[j], j + 1, gap_lo);
+    subScaled(x, col, x[j], gap_hi, end);
   }
   const double eps = settings_.regularization * row.diag;
   double pivot2 = row.diag + eps - ll;
@@ -251,8 +298,8 @@ void ActiveSetSolver::forward(double* x, int from) const {
     x[j] /= col[j];
     const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
     const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
-    for (int i = j + 1; i <= gap_lo; ++i) x[i] -= col[i] * x[j];
-    for (int i = gap_hi; i <= end; ++i) x[i] -= col[i] * x[j];
+    subScaled(x, col, x[j], j + 1, gap_lo);
+    subScaled(x, col, x[j], gap_hi, end);
   }
 }
 
@@ -265,8 +312,8 @@ void ActiveSetSolver::backward(double* x) const {
     double acc = x[j];
     const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
     const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
-    for (int i = j + 1; i <= gap_lo; ++i) acc -= col[i] * x[i];
-    for (int i = gap_hi; i <= end; ++i) acc -= col[i] * x[i];
+    acc = subDot(acc, col, x, j + 1, gap_lo);
+    acc = subDot(acc, col, x, gap_hi, end);
     x[j] = acc / col[j];
   }
 }
@@ -348,7 +395,9 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
     // dependent rows), so a slack within a few ulps of |J_k| (|z_u| + Σ |λ_i| |M⁻¹J_iᵀ|) is noise,
     // whatever its sign. Letting such rows enter P (they are dependent at a degenerate vertex)
     // gives them huge λ, which raises the noise further and ends in a false or real stall.
-    accumulateAbs(p, absz_);
+    // (|z| is summed only once a row's slack passes the relative tolerance: the noise floor can
+    // only raise the threshold, so rows inside the tolerance never need it.)
+    bool have_absz = false;
     int enter = -1;
     double best = 0.0;
     bool blocked_violated = false;
@@ -358,8 +407,14 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
       const double jz = p.rowDot(k, sol.z.data());
       const double w = jz - row.c;
       const double scale = std::max({std::abs(row.c), std::abs(row.c - row.b), p.rowAbsDot(k, sol.z.data()), kTiny});
+      const double tol = settings_.tolerance * scale;
+      if (!(w < -tol)) continue;
+      if (!have_absz) {
+        accumulateAbs(p, absz_);
+        have_absz = true;
+      }
       const double noise = kNoiseUlps * p.rowAbsDot(k, absz_.data());
-      if (!(w < -std::max(settings_.tolerance * scale, noise))) continue;
+      if (!(w < -std::max(tol, noise))) continue;
       if (blocked_[static_cast<size_t>(k)]) { blocked_violated = true; continue; }
       const double score = w / std::sqrt(std::max(row.diag, kTiny));
       if (enter < 0 || score < best) { enter = k; best = score; }
