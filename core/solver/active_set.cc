@@ -131,32 +131,43 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
     const Row& a = p.row(passive_[static_cast<size_t>(i)]);
     if (shares(a)) x[i] = p.A(passive_[static_cast<size_t>(i)], k);
   }
+  // With ε A_kk > 0 the pivot below cannot fail (it is at least that), so row n of the factor is
+  // written as the substitution finishes each entry; otherwise only once the pivot is known.
+  // Row n of the columns before `first` stays past their bounds (never read, zeroed when a
+  // bound grows over it).
+  const double eps = settings_.regularization * row.diag;
+  const bool write_now = eps > 0.0;
+  auto setRow = [&](int j, double* col) {
+    col[n] = x[j];
+    if (x[j] == 0.0) return;
+    int& lj = last_[static_cast<size_t>(j)];
+    for (int i = std::min(lj, n - 1) + 1; i < n; ++i) col[i] = 0.0;  // rows the bound now covers
+    lj = n;
+  };
   double ll = 0.0;
   for (int j = first; j < n; ++j) {
-    if (x[j] == 0.0) continue;
-    const double* col = L + static_cast<size_t>(j) * cap;
+    double* col = L + static_cast<size_t>(j) * cap;
+    if (x[j] == 0.0) {
+      if (write_now) col[n] = x[j];
+      continue;
+    }
     x[j] /= col[j];
     ll += x[j] * x[j];
     const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
-    const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
-    subScaled(x, col, x[j], j + 1, gap_lo);
-    subScaled(x, col, x[j], gap_hi, end);
+    if (j < n_eq_) {
+      subScaled(x, col, x[j], j + 1, std::min(end, band_[static_cast<size_t>(j)]));
+      subScaled(x, col, x[j], n_eq_, end);
+    } else {
+      subScaled(x, col, x[j], j + 1, end);
+    }
+    if (write_now) setRow(j, col);  // column j is not read again here
   }
-  const double eps = settings_.regularization * row.diag;
   double pivot2 = row.diag + eps - ll;
   if (!(pivot2 > kIllPivot * row.diag)) ill_conditioned_ = true;
   if (!(pivot2 > eps)) pivot2 = eps;  // row (numerically) dependent on P: regularisation pivot
   if (!std::isfinite(pivot2) || !(pivot2 > 0.0)) return false;
-  // Row n of the columns before `first` stays past their bounds (never read, zeroed when a
-  // bound grows over it).
-  for (int j = first; j < n; ++j) {
-    double* col = L + static_cast<size_t>(j) * cap;
-    col[n] = x[j];
-    if (x[j] == 0.0) continue;
-    int& lj = last_[static_cast<size_t>(j)];
-    for (int i = std::min(lj, n - 1) + 1; i < n; ++i) col[i] = 0.0;  // rows the bound now covers
-    lj = n;
-  }
+  if (!write_now)
+    for (int j = first; j < n; ++j) setRow(j, L + static_cast<size_t>(j) * cap);
   L[static_cast<size_t>(n) * cap + static_cast<size_t>(n)] = std::sqrt(pivot2);
   last_[static_cast<size_t>(n)] = n;
   if (n_eq_ > 0 || row.type == RowType::Inequality) {

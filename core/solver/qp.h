@@ -66,7 +66,7 @@ class QpProblem {
   const Vec6* unconstrainedData() const { return zu_.data(); }
 
   /// A_ik, from the shared bodies of rows i and k.
-  double A(int i, int k) const {
+  [[gnu::always_inline]] double A(int i, int k) const {
     const Row& a = rows_[static_cast<size_t>(i)];
     const Row& b = rows_[static_cast<size_t>(k)];
     double s = 0.0;
