@@ -303,14 +303,21 @@ void ActiveSetSolver::forward(double* x, int from) const {
   const size_t cap = static_cast<size_t>(capacity_);
   const int n = static_cast<int>(passive_.size());
   const double* L = L_.data();
-  for (int j = from; j < n; ++j) {
+  // Equality columns: their band, then the inequality rows; the others: one range.
+  int j = from;
+  for (; j < n_eq_; ++j) {
     if (x[j] == 0.0) continue;
     const double* col = L + static_cast<size_t>(j) * cap;
     x[j] /= col[j];
     const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
-    const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
-    subScaled(x, col, x[j], j + 1, gap_lo);
-    subScaled(x, col, x[j], gap_hi, end);
+    subScaled(x, col, x[j], j + 1, std::min(end, band_[static_cast<size_t>(j)]));
+    subScaled(x, col, x[j], n_eq_, end);
+  }
+  for (; j < n; ++j) {
+    if (x[j] == 0.0) continue;
+    const double* col = L + static_cast<size_t>(j) * cap;
+    x[j] /= col[j];
+    subScaled(x, col, x[j], j + 1, std::min(last_[static_cast<size_t>(j)], n - 1));
   }
 }
 
@@ -318,14 +325,16 @@ void ActiveSetSolver::backward(double* x) const {
   const size_t cap = static_cast<size_t>(capacity_);
   const int n = static_cast<int>(passive_.size());
   const double* L = L_.data();
-  for (int j = n - 1; j >= 0; --j) {
+  int j = n - 1;
+  for (; j >= n_eq_; --j) {
     const double* col = L + static_cast<size_t>(j) * cap;
-    double acc = x[j];
+    x[j] = subDot(x[j], col, x, j + 1, std::min(last_[static_cast<size_t>(j)], n - 1)) / col[j];
+  }
+  for (; j >= 0; --j) {
+    const double* col = L + static_cast<size_t>(j) * cap;
     const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
-    const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
-    acc = subDot(acc, col, x, j + 1, gap_lo);
-    acc = subDot(acc, col, x, gap_hi, end);
-    x[j] = acc / col[j];
+    const double acc = subDot(x[j], col, x, j + 1, std::min(end, band_[static_cast<size_t>(j)]));
+    x[j] = subDot(acc, col, x, n_eq_, end) / col[j];
   }
 }
 
