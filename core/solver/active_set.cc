@@ -67,7 +67,6 @@ void ActiveSetSolver::reserve(int bodies, int rows) {
   growTo(s_, m);
   growTo(lambda_p_, m);
   growTo(tmp_, m);
-  growTo(rhs_, m);
   growTo(yE_, m);
   growTo(gb_, m);
   growTo(eq_rows_, 2 * m);
@@ -346,7 +345,6 @@ void ActiveSetSolver::forwardEqualities(const QpProblem& p) {
 
 void ActiveSetSolver::solvePassive(const QpProblem& p) {
   const int n = static_cast<int>(passive_.size());
-  for (int i = 0; i < n; ++i) rhs_[static_cast<size_t>(i)] = p.row(passive_[static_cast<size_t>(i)]).b;
   // The forward pass over the equality columns is cached (yE_, gb_): bit for bit what it computes.
   for (int i = 0; i < n_eq_; ++i) s_[static_cast<size_t>(i)] = yE_[static_cast<size_t>(i)];
   for (int i = n_eq_; i < n; ++i) s_[static_cast<size_t>(i)] = gb_[static_cast<size_t>(i)];
@@ -360,7 +358,10 @@ void ActiveSetSolver::refinePassive(const QpProblem& p) {
   for (int step = 0; step < settings_.refinement_steps; ++step) {
     // r = b_P − A_PP s, with A_PP s = J_P (M⁻¹ J_Pᵀ s).
     accumulate(p, s_.data(), dz_);
-    for (int i = 0; i < n; ++i) tmp_[static_cast<size_t>(i)] = rhs_[static_cast<size_t>(i)] - p.rowDot(passive_[static_cast<size_t>(i)], dz_.data());
+    for (int i = 0; i < n; ++i) {
+      const int k = passive_[static_cast<size_t>(i)];
+      tmp_[static_cast<size_t>(i)] = p.row(k).b - p.rowDot(k, dz_.data());
+    }
     forward(tmp_.data(), 0);
     backward(tmp_.data());
     for (int i = 0; i < n; ++i) s_[static_cast<size_t>(i)] += tmp_[static_cast<size_t>(i)];
@@ -407,6 +408,7 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
   for (size_t i = 0; i < passive_.size(); ++i) lambda_p_[i] = s_[i];
 
   bool converged = false, stalled = false;
+  bool z_current = false;  // sol.z = z_u + M⁻¹ J_Pᵀ λ_P for the final λ_P already
   while (stats.iterations < max_iter) {
     // z = z_u + M⁻¹ J_Pᵀ λ_P and the most violated inequality outside P.
     accumulate(p, lambda_p_.data(), dz_);
@@ -426,6 +428,8 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
       const Row& row = p.row(k);
       const double jz = p.rowDot(k, sol.z.data());
       const double w = jz - row.c;
+      // A slack w ≥ 0 is never below −tol·scale (scale > 0): its scale is not needed.
+      if (w >= 0.0 && settings_.tolerance >= 0.0) continue;
       const double scale = std::max({std::abs(row.c), std::abs(row.c - row.b), p.rowAbsDot(k, sol.z.data()), kTiny});
       const double tol = settings_.tolerance * scale;
       if (!(w < -tol)) continue;
@@ -442,6 +446,7 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
     if (enter < 0) {
       converged = !blocked_violated;
       stalled = blocked_violated;
+      z_current = true;
       break;
     }
     ++stats.iterations;
@@ -494,8 +499,10 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
     bool positive = true;
     for (size_t i = 0; i < passive_.size(); ++i)
       positive = positive && (!isIneq(passive_[i]) || s_[i] > 0.0);
-    if (positive)
+    if (positive) {
       for (size_t i = 0; i < passive_.size(); ++i) lambda_p_[i] = s_[i];
+      z_current = false;
+    }
   }
   for (int k = 0; k < m; ++k) sol.lambda[static_cast<size_t>(k)] = 0.0;
   int active = 0;
@@ -503,27 +510,30 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
     sol.lambda[static_cast<size_t>(passive_[i])] = lambda_p_[i];
     if (lambda_p_[i] != 0.0) ++active;
   }
-  accumulate(p, lambda_p_.data(), dz_);
-  bool finite = true;
-  for (int b = 0; b < nb; ++b) {
-    sol.z[static_cast<size_t>(b)] = p.unconstrained(b) + dz_[static_cast<size_t>(b)];
-    finite = finite && sol.z[static_cast<size_t>(b)].allFinite();
+  // (Unless the search loop ended on this λ_P: then sol.z holds exactly this sum.)
+  if (!z_current) {
+    accumulate(p, lambda_p_.data(), dz_);
+    for (int b = 0; b < nb; ++b) sol.z[static_cast<size_t>(b)] = p.unconstrained(b) + dz_[static_cast<size_t>(b)];
   }
+  bool finite = true;
+  for (int b = 0; b < nb; ++b) finite = finite && sol.z[static_cast<size_t>(b)].allFinite();
   stats.active_set_size = active;
   stats.kkt_residual = kktResidual(p, sol, kkt_scratch_).max();
   // Equalities must hold in plain terms too: the round-off-scaled residual cannot see conflicting
   // equalities, whose regularised multipliers (~1/ε) inflate the very scale it divides by.
   {
     double global = kTiny;
+    double* abs_jz = tmp_.data();  // |J_k| |z| per row, read again below
     for (int k = 0; k < m; ++k) {
       const Row& row = p.row(k);
-      global = std::max({global, std::abs(row.c), std::abs(row.c - row.b), p.rowAbsDot(k, sol.z.data())});
+      abs_jz[k] = p.rowAbsDot(k, sol.z.data());
+      global = std::max({global, std::abs(row.c), std::abs(row.c - row.b), abs_jz[k]});
     }
     // Ill-conditioning leaves at most ~1e-5 of a row's scale; conflicts leave O(1).
     for (int k = 0; k < m; ++k) {
       const Row& row = p.row(k);
       if (row.type != RowType::Equality) continue;
-      const double scale = std::max({std::abs(row.c), std::abs(row.c - row.b), p.rowAbsDot(k, sol.z.data())});
+      const double scale = std::max({std::abs(row.c), std::abs(row.c - row.b), abs_jz[k]});
       const double viol = std::abs(p.rowDot(k, sol.z.data()) - row.c);
       if (viol > 1e-3 * scale + 1e-9 * global) {
         equality_missing = true;

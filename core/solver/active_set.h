@@ -96,7 +96,7 @@ class ActiveSetSolver {
 
   std::vector<int> position_;              // row -> position in passive_ or -1
   std::vector<unsigned char> blocked_;     // rows that could not enter since the last change
-  std::vector<double> s_, lambda_p_, tmp_, rhs_;
+  std::vector<double> s_, lambda_p_, tmp_;
   std::vector<Vec6> dz_;
   std::vector<Vec6> absz_;                 // round-off scale of z (accumulateAbs)
   std::vector<Vec6> kkt_scratch_;
