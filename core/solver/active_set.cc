@@ -3,11 +3,76 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 namespace godhand {
 
 namespace {
 constexpr double kTiny = 1e-300;
+// x[i] -= col[i] * xj for i = lo … hi: each entry on its own (one product, one difference, as a
+// scalar loop computes them), two at a time where SSE2 is there (baseline x86-64; no FMA),
+// eight per round.
+[[gnu::always_inline]] inline void subScaled(double* x, const double* col, double xj, int lo, int hi) {
+  int i = lo;
+#if defined(__SSE2__)
+  const __m128d v = _mm_set1_pd(xj);
+  for (; i + 7 <= hi; i += 8) {
+    const __m128d a = _mm_sub_pd(_mm_loadu_pd(x + i), _mm_mul_pd(_mm_loadu_pd(col + i), v));
+    const __m128d b = _mm_sub_pd(_mm_loadu_pd(x + i + 2), _mm_mul_pd(_mm_loadu_pd(col + i + 2), v));
+    const __m128d c = _mm_sub_pd(_mm_loadu_pd(x + i + 4), _mm_mul_pd(_mm_loadu_pd(col + i + 4), v));
+    const __m128d d = _mm_sub_pd(_mm_loadu_pd(x + i + 6), _mm_mul_pd(_mm_loadu_pd(col + i + 6), v));
+    _mm_storeu_pd(x + i, a);
+    _mm_storeu_pd(x + i + 2, b);
+    _mm_storeu_pd(x + i + 4, c);
+    _mm_storeu_pd(x + i + 6, d);
+  }
+  if (i + 3 <= hi) {
+    const __m128d a = _mm_sub_pd(_mm_loadu_pd(x + i), _mm_mul_pd(_mm_loadu_pd(col + i), v));
+    const __m128d b = _mm_sub_pd(_mm_loadu_pd(x + i + 2), _mm_mul_pd(_mm_loadu_pd(col + i + 2), v));
+    _mm_storeu_pd(x + i, a);
+    _mm_storeu_pd(x + i + 2, b);
+    i += 4;
+  }
+  if (i + 1 <= hi) {
+    _mm_storeu_pd(x + i, _mm_sub_pd(_mm_loadu_pd(x + i), _mm_mul_pd(_mm_loadu_pd(col + i), v)));
+    i += 2;
+  }
+  if (i <= hi) x[i] -= col[i] * xj;
+#else
+  for (; i <= hi; ++i) x[i] -= col[i] * xj;
+#endif
+}
+// acc − Σ col[i] x[i] over i = lo … hi, subtracted one by one in increasing i (the order fixes
+// the bits); unrolled by eight only.
+[[gnu::always_inline]] inline double subDot(double acc, const double* col, const double* x, int lo, int hi) {
+  int i = lo;
+  for (; i + 7 <= hi; i += 8) {
+    acc -= col[i] * x[i];
+    acc -= col[i + 1] * x[i + 1];
+    acc -= col[i + 2] * x[i + 2];
+    acc -= col[i + 3] * x[i + 3];
+    acc -= col[i + 4] * x[i + 4];
+    acc -= col[i + 5] * x[i + 5];
+    acc -= col[i + 6] * x[i + 6];
+    acc -= col[i + 7] * x[i + 7];
+  }
+  if (i + 3 <= hi) {
+    acc -= col[i] * x[i];
+    acc -= col[i + 1] * x[i + 1];
+    acc -= col[i + 2] * x[i + 2];
+    acc -= col[i + 3] * x[i + 3];
+    i += 4;
+  }
+  if (i + 1 <= hi) {
+    acc -= col[i] * x[i];
+    acc -= col[i + 1] * x[i + 1];
+    i += 2;
+  }
+  if (i <= hi) acc -= col[i] * x[i];
+  return acc;
+}
 constexpr double kNoiseUlps = 4.0 * std::numeric_limits<double>::epsilon();  // round-off floor of a slack
 template <class V>
 void growTo(V& v, size_t n) {
@@ -32,10 +97,11 @@ void ActiveSetSolver::reserve(int bodies, int rows) {
   growTo(s_, m);
   growTo(lambda_p_, m);
   growTo(tmp_, m);
-  growTo(rhs_, m);
   growTo(yE_, m);
   growTo(gb_, m);
   growTo(eq_rows_, 2 * m);
+  growTo(hit_pos_, 2 * m);
+  growTo(hit_row_, 2 * m);
   growTo(eq_start_, static_cast<size_t>(bodies) + 1);
   growTo(dz_, static_cast<size_t>(bodies));
   growTo(absz_, static_cast<size_t>(bodies));
@@ -59,12 +125,29 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
   auto shares = [&row](const Row& a) {
     return a.body0 == row.body0 || a.body0 == row.body1 || (a.body1 >= 0 && (a.body1 == row.body0 || a.body1 == row.body1));
   };
-  int first = n;
+  // One pass over the equality rows of the row's bodies collects the passive ones (position and
+  // row); a row touching both bodies is listed under each and taken once. While the equality
+  // block is built every passive row precedes k, and the lists are sorted by row.
+  int first = n, hits = 0;
+  int* hit_pos = hit_pos_.data();
+  int* hit_row = hit_row_.data();
   for (const int body : {row.body0, row.body1}) {
     if (body < 0) continue;
-    for (int e = eq_start_[static_cast<size_t>(body)]; e < eq_start_[static_cast<size_t>(body) + 1]; ++e) {
-      const int pos = position_[static_cast<size_t>(eq_rows_[static_cast<size_t>(e)])];
-      if (pos >= 0 && pos < n) first = std::min(first, pos);
+    const bool second = body != row.body0 && row.body0 >= 0;
+    const int e_end = eq_start_[static_cast<size_t>(body) + 1];
+    for (int e = eq_start_[static_cast<size_t>(body)]; e < e_end; ++e) {
+      const int r = eq_rows_[static_cast<size_t>(e)];
+      if (building_equalities_ && r >= k) break;
+      const int pos = position_[static_cast<size_t>(r)];
+      if (!(pos >= 0 && pos < n)) continue;
+      if (second) {
+        const Row& a = p.row(r);
+        if (a.body0 == row.body0 || a.body1 == row.body0) continue;  // listed under body0 too
+      }
+      first = std::min(first, pos);
+      hit_pos[hits] = pos;
+      hit_row[hits] = r;
+      ++hits;
     }
   }
   // Passive inequality rows (none while the equality block is built) are all read.
@@ -72,44 +155,48 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
   for (int i = ineq_from; i < first; ++i)
     if (shares(p.row(passive_[static_cast<size_t>(i)]))) { first = i; break; }
   std::fill(x + first, x + n, 0.0);
-  for (const int body : {row.body0, row.body1}) {
-    if (body < 0) continue;
-    for (int e = eq_start_[static_cast<size_t>(body)]; e < eq_start_[static_cast<size_t>(body) + 1]; ++e) {
-      const int r = eq_rows_[static_cast<size_t>(e)];
-      const int pos = position_[static_cast<size_t>(r)];
-      if (pos >= 0 && pos < n) x[pos] = p.A(r, k);
-    }
-  }
+  for (int h = 0; h < hits; ++h) x[hit_pos[h]] = p.A(hit_row[h], k);
   for (int i = std::max(ineq_from, first); i < n; ++i) {
     const Row& a = p.row(passive_[static_cast<size_t>(i)]);
     if (shares(a)) x[i] = p.A(passive_[static_cast<size_t>(i)], k);
   }
+  // With ε A_kk > 0 the pivot below cannot fail (it is at least that), so row n of the factor is
+  // written as the substitution finishes each entry; otherwise only once the pivot is known.
+  // Row n of the columns before `first` stays past their bounds (never read, zeroed when a
+  // bound grows over it).
+  const double eps = settings_.regularization * row.diag;
+  const bool write_now = eps > 0.0;
+  auto setRow = [&](int j, double* col) {
+    col[n] = x[j];
+    if (x[j] == 0.0) return;
+    int& lj = last_[static_cast<size_t>(j)];
+    for (int i = std::min(lj, n - 1) + 1; i < n; ++i) col[i] = 0.0;  // rows the bound now covers
+    lj = n;
+  };
   double ll = 0.0;
   for (int j = first; j < n; ++j) {
-    if (x[j] == 0.0) continue;
-    const double* col = L + static_cast<size_t>(j) * cap;
+    double* col = L + static_cast<size_t>(j) * cap;
+    if (x[j] == 0.0) {
+      if (write_now) col[n] = x[j];
+      continue;
+    }
     x[j] /= col[j];
     ll += x[j] * x[j];
     const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
-    const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
-    for (int i = j + 1; i <= gap_lo; ++i) x[i] -= col[i] * x[j];
-    for (int i = gap_hi; i <= end; ++i) x[i] -= col[i] * x[j];
+    if (j < n_eq_) {
+      subScaled(x, col, x[j], j + 1, std::min(end, band_[static_cast<size_t>(j)]));
+      subScaled(x, col, x[j], n_eq_, end);
+    } else {
+      subScaled(x, col, x[j], j + 1, end);
+    }
+    if (write_now) setRow(j, col);  // column j is not read again here
   }
-  const double eps = settings_.regularization * row.diag;
   double pivot2 = row.diag + eps - ll;
   if (!(pivot2 > kIllPivot * row.diag)) ill_conditioned_ = true;
   if (!(pivot2 > eps)) pivot2 = eps;  // row (numerically) dependent on P: regularisation pivot
   if (!std::isfinite(pivot2) || !(pivot2 > 0.0)) return false;
-  // Row n of the columns before `first` stays past their bounds (never read, zeroed when a
-  // bound grows over it).
-  for (int j = first; j < n; ++j) {
-    double* col = L + static_cast<size_t>(j) * cap;
-    col[n] = x[j];
-    if (x[j] == 0.0) continue;
-    int& lj = last_[static_cast<size_t>(j)];
-    for (int i = std::min(lj, n - 1) + 1; i < n; ++i) col[i] = 0.0;  // rows the bound now covers
-    lj = n;
-  }
+  if (!write_now)
+    for (int j = first; j < n; ++j) setRow(j, L + static_cast<size_t>(j) * cap);
   L[static_cast<size_t>(n) * cap + static_cast<size_t>(n)] = std::sqrt(pivot2);
   last_[static_cast<size_t>(n)] = n;
   if (n_eq_ > 0 || row.type == RowType::Inequality) {
@@ -245,14 +332,21 @@ void ActiveSetSolver::forward(double* x, int from) const {
   const size_t cap = static_cast<size_t>(capacity_);
   const int n = static_cast<int>(passive_.size());
   const double* L = L_.data();
-  for (int j = from; j < n; ++j) {
+  // Equality columns: their band, then the inequality rows; the others: one range.
+  int j = from;
+  for (; j < n_eq_; ++j) {
     if (x[j] == 0.0) continue;
     const double* col = L + static_cast<size_t>(j) * cap;
     x[j] /= col[j];
     const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
-    const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
-    for (int i = j + 1; i <= gap_lo; ++i) x[i] -= col[i] * x[j];
-    for (int i = gap_hi; i <= end; ++i) x[i] -= col[i] * x[j];
+    subScaled(x, col, x[j], j + 1, std::min(end, band_[static_cast<size_t>(j)]));
+    subScaled(x, col, x[j], n_eq_, end);
+  }
+  for (; j < n; ++j) {
+    if (x[j] == 0.0) continue;
+    const double* col = L + static_cast<size_t>(j) * cap;
+    x[j] /= col[j];
+    subScaled(x, col, x[j], j + 1, std::min(last_[static_cast<size_t>(j)], n - 1));
   }
 }
 
@@ -260,14 +354,16 @@ void ActiveSetSolver::backward(double* x) const {
   const size_t cap = static_cast<size_t>(capacity_);
   const int n = static_cast<int>(passive_.size());
   const double* L = L_.data();
-  for (int j = n - 1; j >= 0; --j) {
+  int j = n - 1;
+  for (; j >= n_eq_; --j) {
     const double* col = L + static_cast<size_t>(j) * cap;
-    double acc = x[j];
+    x[j] = subDot(x[j], col, x, j + 1, std::min(last_[static_cast<size_t>(j)], n - 1)) / col[j];
+  }
+  for (; j >= 0; --j) {
+    const double* col = L + static_cast<size_t>(j) * cap;
     const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
-    const int gap_lo = j < n_eq_ ? std::min(end, band_[static_cast<size_t>(j)]) : end, gap_hi = j < n_eq_ ? n_eq_ : end + 1;
-    for (int i = j + 1; i <= gap_lo; ++i) acc -= col[i] * x[i];
-    for (int i = gap_hi; i <= end; ++i) acc -= col[i] * x[i];
-    x[j] = acc / col[j];
+    const double acc = subDot(x[j], col, x, j + 1, std::min(end, band_[static_cast<size_t>(j)]));
+    x[j] = subDot(acc, col, x, n_eq_, end) / col[j];
   }
 }
 
@@ -279,7 +375,6 @@ void ActiveSetSolver::forwardEqualities(const QpProblem& p) {
 
 void ActiveSetSolver::solvePassive(const QpProblem& p) {
   const int n = static_cast<int>(passive_.size());
-  for (int i = 0; i < n; ++i) rhs_[static_cast<size_t>(i)] = p.row(passive_[static_cast<size_t>(i)]).b;
   // The forward pass over the equality columns is cached (yE_, gb_): bit for bit what it computes.
   for (int i = 0; i < n_eq_; ++i) s_[static_cast<size_t>(i)] = yE_[static_cast<size_t>(i)];
   for (int i = n_eq_; i < n; ++i) s_[static_cast<size_t>(i)] = gb_[static_cast<size_t>(i)];
@@ -293,7 +388,10 @@ void ActiveSetSolver::refinePassive(const QpProblem& p) {
   for (int step = 0; step < settings_.refinement_steps; ++step) {
     // r = b_P − A_PP s, with A_PP s = J_P (M⁻¹ J_Pᵀ s).
     accumulate(p, s_.data(), dz_);
-    for (int i = 0; i < n; ++i) tmp_[static_cast<size_t>(i)] = rhs_[static_cast<size_t>(i)] - p.rowDot(passive_[static_cast<size_t>(i)], dz_.data());
+    for (int i = 0; i < n; ++i) {
+      const int k = passive_[static_cast<size_t>(i)];
+      tmp_[static_cast<size_t>(i)] = p.row(k).b - p.rowDot(k, dz_.data());
+    }
     forward(tmp_.data(), 0);
     backward(tmp_.data());
     for (int i = 0; i < n; ++i) s_[static_cast<size_t>(i)] += tmp_[static_cast<size_t>(i)];
@@ -340,6 +438,7 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
   for (size_t i = 0; i < passive_.size(); ++i) lambda_p_[i] = s_[i];
 
   bool converged = false, stalled = false;
+  bool z_current = false;  // sol.z = z_u + M⁻¹ J_Pᵀ λ_P for the final λ_P already
   while (stats.iterations < max_iter) {
     // z = z_u + M⁻¹ J_Pᵀ λ_P and the most violated inequality outside P.
     accumulate(p, lambda_p_.data(), dz_);
@@ -348,7 +447,9 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
     // dependent rows), so a slack within a few ulps of |J_k| (|z_u| + Σ |λ_i| |M⁻¹J_iᵀ|) is noise,
     // whatever its sign. Letting such rows enter P (they are dependent at a degenerate vertex)
     // gives them huge λ, which raises the noise further and ends in a false or real stall.
-    accumulateAbs(p, absz_);
+    // (|z| is summed only once a row's slack passes the relative tolerance: the noise floor can
+    // only raise the threshold, so rows inside the tolerance never need it.)
+    bool have_absz = false;
     int enter = -1;
     double best = 0.0;
     bool blocked_violated = false;
@@ -357,9 +458,17 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
       const Row& row = p.row(k);
       const double jz = p.rowDot(k, sol.z.data());
       const double w = jz - row.c;
+      // A slack w ≥ 0 is never below −tol·scale (scale > 0): its scale is not needed.
+      if (w >= 0.0 && settings_.tolerance >= 0.0) continue;
       const double scale = std::max({std::abs(row.c), std::abs(row.c - row.b), p.rowAbsDot(k, sol.z.data()), kTiny});
+      const double tol = settings_.tolerance * scale;
+      if (!(w < -tol)) continue;
+      if (!have_absz) {
+        accumulateAbs(p, absz_);
+        have_absz = true;
+      }
       const double noise = kNoiseUlps * p.rowAbsDot(k, absz_.data());
-      if (!(w < -std::max(settings_.tolerance * scale, noise))) continue;
+      if (!(w < -std::max(tol, noise))) continue;
       if (blocked_[static_cast<size_t>(k)]) { blocked_violated = true; continue; }
       const double score = w / std::sqrt(std::max(row.diag, kTiny));
       if (enter < 0 || score < best) { enter = k; best = score; }
@@ -367,6 +476,7 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
     if (enter < 0) {
       converged = !blocked_violated;
       stalled = blocked_violated;
+      z_current = true;
       break;
     }
     ++stats.iterations;
@@ -419,8 +529,10 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
     bool positive = true;
     for (size_t i = 0; i < passive_.size(); ++i)
       positive = positive && (!isIneq(passive_[i]) || s_[i] > 0.0);
-    if (positive)
+    if (positive) {
       for (size_t i = 0; i < passive_.size(); ++i) lambda_p_[i] = s_[i];
+      z_current = false;
+    }
   }
   for (int k = 0; k < m; ++k) sol.lambda[static_cast<size_t>(k)] = 0.0;
   int active = 0;
@@ -428,27 +540,30 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
     sol.lambda[static_cast<size_t>(passive_[i])] = lambda_p_[i];
     if (lambda_p_[i] != 0.0) ++active;
   }
-  accumulate(p, lambda_p_.data(), dz_);
-  bool finite = true;
-  for (int b = 0; b < nb; ++b) {
-    sol.z[static_cast<size_t>(b)] = p.unconstrained(b) + dz_[static_cast<size_t>(b)];
-    finite = finite && sol.z[static_cast<size_t>(b)].allFinite();
+  // (Unless the search loop ended on this λ_P: then sol.z holds exactly this sum.)
+  if (!z_current) {
+    accumulate(p, lambda_p_.data(), dz_);
+    for (int b = 0; b < nb; ++b) sol.z[static_cast<size_t>(b)] = p.unconstrained(b) + dz_[static_cast<size_t>(b)];
   }
+  bool finite = true;
+  for (int b = 0; b < nb; ++b) finite = finite && sol.z[static_cast<size_t>(b)].allFinite();
   stats.active_set_size = active;
   stats.kkt_residual = kktResidual(p, sol, kkt_scratch_).max();
   // Equalities must hold in plain terms too: the round-off-scaled residual cannot see conflicting
   // equalities, whose regularised multipliers (~1/ε) inflate the very scale it divides by.
   {
     double global = kTiny;
+    double* abs_jz = tmp_.data();  // |J_k| |z| per row, read again below
     for (int k = 0; k < m; ++k) {
       const Row& row = p.row(k);
-      global = std::max({global, std::abs(row.c), std::abs(row.c - row.b), p.rowAbsDot(k, sol.z.data())});
+      abs_jz[k] = p.rowAbsDot(k, sol.z.data());
+      global = std::max({global, std::abs(row.c), std::abs(row.c - row.b), abs_jz[k]});
     }
     // Ill-conditioning leaves at most ~1e-5 of a row's scale; conflicts leave O(1).
     for (int k = 0; k < m; ++k) {
       const Row& row = p.row(k);
       if (row.type != RowType::Equality) continue;
-      const double scale = std::max({std::abs(row.c), std::abs(row.c - row.b), p.rowAbsDot(k, sol.z.data())});
+      const double scale = std::max({std::abs(row.c), std::abs(row.c - row.b), abs_jz[k]});
       const double viol = std::abs(p.rowDot(k, sol.z.data()) - row.c);
       if (viol > 1e-3 * scale + 1e-9 * global) {
         equality_missing = true;

@@ -92,9 +92,10 @@ class ActiveSetSolver {
   // Equality rows touching each body (CSR over bodies): append() reads A(P_i, k) only where row k
   // shares a body with an equality row, instead of over the whole passive set.
   std::vector<int> eq_start_, eq_rows_;
+  std::vector<int> hit_pos_, hit_row_;     // append(): the passive equality rows sharing a body
   std::vector<int> position_;              // row -> position in passive_ or -1
   std::vector<unsigned char> blocked_;     // rows that could not enter since the last change
-  std::vector<double> s_, lambda_p_, tmp_, rhs_;
+  std::vector<double> s_, lambda_p_, tmp_;
   std::vector<Vec6> dz_;
   std::vector<Vec6> absz_;                 // round-off scale of z (accumulateAbs)
   std::vector<Vec6> kkt_scratch_;

@@ -63,19 +63,6 @@ void QpProblem::finalize() {
   }
 }
 
-double QpProblem::A(int i, int k) const {
-  const Row& a = rows_[static_cast<size_t>(i)];
-  const Row& b = rows_[static_cast<size_t>(k)];
-  double s = 0.0;
-  if (a.body0 == b.body0) s += a.J0.dot(b.W0);
-  if (b.body1 >= 0 && a.body0 == b.body1) s += a.J0.dot(b.W1);
-  if (a.body1 >= 0) {
-    if (a.body1 == b.body0) s += a.J1.dot(b.W0);
-    if (b.body1 >= 0 && a.body1 == b.body1) s += a.J1.dot(b.W1);
-  }
-  return s;
-}
-
 double QpProblem::rowDot(int k, const Vec6* z) const {
   const Row& r = rows_[static_cast<size_t>(k)];
   double s = r.J0.dot(z[r.body0]);

@@ -66,7 +66,18 @@ class QpProblem {
   const Vec6* unconstrainedData() const { return zu_.data(); }
 
   /// A_ik, from the shared bodies of rows i and k.
-  double A(int i, int k) const;
+  [[gnu::always_inline]] double A(int i, int k) const {
+    const Row& a = rows_[static_cast<size_t>(i)];
+    const Row& b = rows_[static_cast<size_t>(k)];
+    double s = 0.0;
+    if (a.body0 == b.body0) s += a.J0.dot(b.W0);
+    if (b.body1 >= 0 && a.body0 == b.body1) s += a.J0.dot(b.W1);
+    if (a.body1 >= 0) {
+      if (a.body1 == b.body0) s += a.J1.dot(b.W0);
+      if (b.body1 >= 0 && a.body1 == b.body1) s += a.J1.dot(b.W1);
+    }
+    return s;
+  }
   /// J_k z for per-body accelerations z.
   double rowDot(int k, const Vec6* z) const;
   /// Σ |J_k| |z| (elementwise): the round-off scale of rowDot.

@@ -456,6 +456,7 @@ void JointProjector::reserve(int rows) {
   proj_sol_.resize(n, rows);
   exact_.reserve(n, rows);
   warm_.reserve(static_cast<size_t>(rows));
+  frames_.reserve(model_.joints.size());
 }
 
 JointProjector::Result JointProjector::project(std::vector<Pose>& X_W_, const Input& in) {
@@ -478,7 +479,9 @@ JointProjector::Result JointProjector::project(std::vector<Pose>& X_W_, const In
   int it = 0;
   for (;; ++it) {
     // The errors of the current poses: the result's figures when the loop ends here.
-    result.joint_errors = jointErrors(model_, X_W_.data());
+    // (The joint frames serve the rows below as well, at the same poses.)
+    jointFrames(model_, X_W_.data(), &frames_);
+    result.joint_errors = jointErrors(model_, frames_.data());
     const JointErrors& e = result.joint_errors;
     // Contacts moved further in than allowed (the rows are linear in the rotation; the rigid
     // motion of the contact point is not): min(d_ref, δ) − d_now.
@@ -509,8 +512,8 @@ JointProjector::Result JointProjector::project(std::vector<Pose>& X_W_, const In
     if (pull)
       for (int b = 0; b < n; ++b)
         proj_.unconstrained(b) = poseDifference(in.goal[static_cast<size_t>(b)], X_W_[static_cast<size_t>(b)]);
-    addJointRows(proj_, model_, X_W_.data(), pp);
-    addLimitRows(proj_, model_, X_W_.data(), pull ? proj_.unconstrainedData() : nullptr, pp);
+    addJointRows(proj_, model_, frames_.data(), pp);
+    addLimitRows(proj_, model_, frames_.data(), pull ? proj_.unconstrainedData() : nullptr, pp);
     const int proj_first_contact = proj_.numRows();
     for (size_t i = 0; i < nc; ++i) {
       if (!used(i)) continue;

@@ -131,6 +131,7 @@ class JointProjector {
   QpSolution proj_sol_;
   ActiveSetSolver exact_;
   std::vector<unsigned char> warm_;  // the last iteration's active rows (the next one's warm start)
+  std::vector<JointFrame> frames_;   // the joints at the current poses: errors and rows from one evaluation
 };
 
 struct StageTimes {

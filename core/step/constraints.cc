@@ -6,15 +6,9 @@
 namespace godhand {
 
 namespace {
-
-struct JointGeometry {
-  Mat3 R_P, R_C;   // joint frame axes (columns x, y, z) attached to parent / child, world
-  Vec3 u_P, u_C;   // anchor relative to each body's origin, world
-  Vec3 r_P, r_C;   // anchors, world
-};
-
-JointGeometry geometry(const Joint& j, const Pose& X_WP, const Pose& X_WC) {
-  JointGeometry g;
+// The frame without the angles (what the joint rows need).
+JointFrame geometry(const Joint& j, const Pose& X_WP, const Pose& X_WC) {
+  JointFrame g;
   g.R_P = (X_WP.q * j.X_PJ.q).toRotationMatrix();
   g.R_C = (X_WC.q * j.X_CJ.q).toRotationMatrix();
   g.u_P = X_WP.q * j.X_PJ.p;
@@ -23,6 +17,23 @@ JointGeometry geometry(const Joint& j, const Pose& X_WP, const Pose& X_WC) {
   g.r_C = X_WC.p + g.u_C;
   return g;
 }
+}  // namespace
+
+JointFrame jointFrame(const Joint& j, const Pose& X_WP, const Pose& X_WC) {
+  JointFrame g = geometry(j, X_WP, X_WC);
+  g.angles = jointAngles(j, X_WP, X_WC);
+  return g;
+}
+
+void jointFrames(const HandModel& model, const Pose* X_W, std::vector<JointFrame>* frames) {
+  frames->resize(model.joints.size());
+  for (size_t ji = 0; ji < model.joints.size(); ++ji) {
+    const Joint& j = model.joints[ji];
+    (*frames)[ji] = jointFrame(j, X_W[j.parent], X_W[j.child]);
+  }
+}
+
+namespace {
 
 Vec6 block(const Vec3& lin, const Vec3& ang) {
   Vec6 v;
@@ -40,16 +51,17 @@ double gapRhs(double g, double margin, double beta, double dt2) {
   return g > margin ? -(g - margin) / dt2 : beta * (margin - g) / dt2;
 }
 
-}  // namespace
 
-void addJointRows(QpProblem& qp, const HandModel& model, const Pose* X_W, const RowParams& prm) {
+// The rows of joint ji from its frame g (the same numbers whether g was computed here or kept).
+template <class FrameOf>
+void jointRows(QpProblem& qp, const HandModel& model, FrameOf frameOf, const RowParams& prm) {
   const double k = prm.beta / (prm.dt * prm.dt);
   const Vec3 zero = Vec3::Zero();
   const bool ordered = model.joint_order.size() == model.joints.size();
   for (size_t idx = 0; idx < model.joints.size(); ++idx) {
     const size_t ji = ordered ? static_cast<size_t>(model.joint_order[idx]) : idx;
     const Joint& j = model.joints[ji];
-    const JointGeometry g = geometry(j, X_W[j.parent], X_W[j.child]);
+    const auto& g = frameOf(ji, j);
     const std::uint64_t base = static_cast<std::uint64_t>(ji) << 8;
     const Vec3 e = g.r_C - g.r_P;
     for (int a = 0; a < 3; ++a) {
@@ -82,19 +94,30 @@ void addJointRows(QpProblem& qp, const HandModel& model, const Pose* X_W, const 
     }
   }
 }
+}  // namespace
 
-int addLimitRows(QpProblem& qp, const HandModel& model, const Pose* X_W, const Vec6* z_u, const RowParams& prm) {
+void addJointRows(QpProblem& qp, const HandModel& model, const Pose* X_W, const RowParams& prm) {
+  jointRows(qp, model, [&](size_t, const Joint& j) { return geometry(j, X_W[j.parent], X_W[j.child]); }, prm);
+}
+
+void addJointRows(QpProblem& qp, const HandModel& model, const JointFrame* frames, const RowParams& prm) {
+  jointRows(qp, model, [&](size_t ji, const Joint&) -> const JointFrame& { return frames[ji]; }, prm);
+}
+
+namespace {
+// The limit rows from each limited joint's angles and axes (frameOf: angles, R_P, R_C).
+template <class FrameOf>
+int limitRows(QpProblem& qp, const HandModel& model, FrameOf frameOf, const Vec6* z_u, const RowParams& prm) {
   const double dt2 = prm.dt * prm.dt;
   const Vec3 zero = Vec3::Zero();
   int added = 0;
   for (size_t ji = 0; ji < model.joints.size(); ++ji) {
     const Joint& j = model.joints[ji];
     if (!j.limits[0].enabled && !j.limits[1].enabled) continue;
-    const Pose& X_P = X_W[j.parent];
-    const Pose& X_C = X_W[j.child];
-    const auto angles = jointAngles(j, X_P, X_C);
-    const Mat3 R_P = (X_P.q * j.X_PJ.q).toRotationMatrix();
-    const Mat3 R_C = (X_C.q * j.X_CJ.q).toRotationMatrix();
+    const auto& f = frameOf(ji, j);
+    const auto& angles = f.angles;
+    const Mat3& R_P = f.R_P;
+    const Mat3& R_C = f.R_C;
     for (int a = 0; a < 2; ++a) {
       const JointLimit& lim = j.limits[static_cast<size_t>(a)];
       if (!lim.enabled) continue;
@@ -118,6 +141,27 @@ int addLimitRows(QpProblem& qp, const HandModel& model, const Pose* X_W, const V
   }
   return added;
 }
+}  // namespace
+
+int addLimitRows(QpProblem& qp, const HandModel& model, const Pose* X_W, const Vec6* z_u, const RowParams& prm) {
+  struct Axes {
+    std::array<double, 2> angles;
+    Mat3 R_P, R_C;
+  };
+  return limitRows(qp, model, [&](size_t, const Joint& j) {
+    const Pose& X_P = X_W[j.parent];
+    const Pose& X_C = X_W[j.child];
+    Axes f;
+    f.angles = jointAngles(j, X_P, X_C);
+    f.R_P = (X_P.q * j.X_PJ.q).toRotationMatrix();
+    f.R_C = (X_C.q * j.X_CJ.q).toRotationMatrix();
+    return f;
+  }, z_u, prm);
+}
+
+int addLimitRows(QpProblem& qp, const HandModel& model, const JointFrame* frames, const Vec6* z_u, const RowParams& prm) {
+  return limitRows(qp, model, [&](size_t ji, const Joint&) -> const JointFrame& { return frames[ji]; }, z_u, prm);
+}
 
 void addContactRow(QpProblem& qp, const Contact& c, const Pose& X_WB, const RowParams& prm) {
   const Vec3 u = c.p_W - X_WB.p;
@@ -126,10 +170,13 @@ void addContactRow(QpProblem& qp, const Contact& c, const Pose& X_WB, const RowP
             c.key ? rowKey(RowKind::Contact, c.key) : 0);
 }
 
-JointErrors jointErrors(const HandModel& model, const Pose* X_W) {
+namespace {
+template <class FrameOf>
+JointErrors errorsOf(const HandModel& model, FrameOf frameOf) {
   JointErrors e;
-  for (const Joint& j : model.joints) {
-    const JointGeometry g = geometry(j, X_W[j.parent], X_W[j.child]);
+  for (size_t ji = 0; ji < model.joints.size(); ++ji) {
+    const Joint& j = model.joints[ji];
+    const auto& g = frameOf(ji, j);
     e.gap = std::max(e.gap, (g.r_C - g.r_P).norm());
     switch (j.type) {
       case JointType::Spherical2Dof:
@@ -142,7 +189,7 @@ JointErrors jointErrors(const HandModel& model, const Pose* X_W) {
         e.lock = std::max(e.lock, logRotation(Quat(g.R_C * g.R_P.transpose())).norm());
         break;
     }
-    const auto angles = jointAngles(j, X_W[j.parent], X_W[j.child]);
+    const auto& angles = g.angles;
     for (int a = 0; a < 2; ++a) {
       const JointLimit& lim = j.limits[static_cast<size_t>(a)];
       if (!lim.enabled) continue;
@@ -151,6 +198,15 @@ JointErrors jointErrors(const HandModel& model, const Pose* X_W) {
     }
   }
   return e;
+}
+}  // namespace
+
+JointErrors jointErrors(const HandModel& model, const Pose* X_W) {
+  return errorsOf(model, [&](size_t, const Joint& j) { return jointFrame(j, X_W[j.parent], X_W[j.child]); });
+}
+
+JointErrors jointErrors(const HandModel& model, const JointFrame* frames) {
+  return errorsOf(model, [&](size_t ji, const Joint&) -> const JointFrame& { return frames[ji]; });
 }
 
 }  // namespace godhand

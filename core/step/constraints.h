@@ -24,7 +24,9 @@
 //   (c = 0): that is the round-off of the distance or angle, not a motion to make.
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <vector>
 
 #include "model/hand_model.h"
 #include "solver/qp.h"
@@ -55,12 +57,29 @@ inline std::uint64_t rowKey(RowKind kind, std::uint64_t id) {
   return (static_cast<std::uint64_t>(kind) << 60) | (id & ((std::uint64_t{1} << 60) - 1));
 }
 
+/// What the joint rows, the limit rows and the joint errors read of one joint at one
+/// configuration: its frame axes (columns x, y, z) attached to parent / child, the anchor
+/// relative to each body's origin and in the world, and the joint angles (jointAngles).
+/// Computed once per configuration where more than one of them is needed (the projection's
+/// iterations); the functions taking frames give the same numbers as those taking poses.
+struct JointFrame {
+  Mat3 R_P, R_C;
+  Vec3 u_P, u_C;
+  Vec3 r_P, r_C;
+  std::array<double, 2> angles{};
+};
+JointFrame jointFrame(const Joint& joint, const Pose& X_WP, const Pose& X_WC);
+/// One frame per joint (model order) into *frames (resized).
+void jointFrames(const HandModel& model, const Pose* X_W, std::vector<JointFrame>* frames);
+
 /// Appends the equality rows of every joint. X_W holds one world pose per body.
 void addJointRows(QpProblem& qp, const HandModel& model, const Pose* X_W, const RowParams& params);
+void addJointRows(QpProblem& qp, const HandModel& model, const JointFrame* frames, const RowParams& params);
 
 /// Appends the limit rows that are active or about to be. z_u (per body) predicts the
 /// unconstrained motion; pass nullptr to use the current angles only. Returns rows added.
 int addLimitRows(QpProblem& qp, const HandModel& model, const Pose* X_W, const Vec6* z_u, const RowParams& params);
+int addLimitRows(QpProblem& qp, const HandModel& model, const JointFrame* frames, const Vec6* z_u, const RowParams& params);
 
 /// Appends one contact row for body `contact.body` at pose X_WB.
 void addContactRow(QpProblem& qp, const Contact& contact, const Pose& X_WB, const RowParams& params);
@@ -73,5 +92,6 @@ struct JointErrors {
   double limit = 0.0;
 };
 JointErrors jointErrors(const HandModel& model, const Pose* X_W);
+JointErrors jointErrors(const HandModel& model, const JointFrame* frames);
 
 }  // namespace godhand
