@@ -593,6 +593,30 @@ TEST(SolverActiveSet, IncrementalFactorMatchesPassiveBlock) {
               worst, static_cast<double>(passive_total) / 800.0);
 }
 
+// A random problem of 1-3 bodies and 4-27 rows whose entries are in {-2, -1, 0, 1} (exact
+// cancellations and dependencies); with `equalities`, a quarter of the rows are equalities. Returns
+// the row count.
+int integerRows(std::mt19937& gen, bool equalities, QpProblem* qp) {
+  const int nb = 1 + static_cast<int>(gen() % 3), m = 4 + static_cast<int>(gen() % 24);
+  qp->reset(nb);
+  for (int b = 0; b < nb; ++b) qp->setRigidMass(b, 1.0 + b, Mat3::Identity(), Vec3(0.1, 0.2, 0.3));
+  for (int k = 0; k < m; ++k) {
+    Vec6 J0, J1;
+    for (int i = 0; i < 6; ++i) {
+      const int r0 = static_cast<int>(gen() % 5), r1 = static_cast<int>(gen() % 5);
+      J0[i] = r0 < 2 ? 0.0 : r0 - 3.0;
+      J1[i] = r1 < 2 ? 0.0 : r1 - 3.0;
+    }
+    if (J0.isZero()) J0[0] = 1.0;
+    const int b0 = static_cast<int>(gen() % static_cast<unsigned>(nb));
+    const int b1 = nb > 1 && gen() % 2 ? (b0 + 1) % nb : -1;
+    const RowType type = equalities && gen() % 4 == 0 ? RowType::Equality : RowType::Inequality;
+    qp->addRow(type, b0, J0, b1, J1, static_cast<double>(static_cast<int>(gen() % 7) - 3), 0);
+  }
+  qp->finalize();
+  return m;
+}
+
 // Review finding: with integer-like rows (entries in {−2, −1, 0, 1}) factor entries cancel to
 // exactly zero, so the deletion's rank-one update must still extend each column's nonzero bound as
 // x fills in. Random warm sets force deletions at every position; the factor must stay exact.
@@ -604,22 +628,7 @@ TEST(SolverActiveSet, IncrementalFactorWithExactCancellations) {
   double worst = 0.0;
   constexpr int kTrials = 200000;  // the failure this guards against is rare (~1 in 40,000)
   for (int trial = 0; trial < kTrials; ++trial) {
-    const int nb = 1 + static_cast<int>(gen() % 3), m = 4 + static_cast<int>(gen() % 24);
-    qp.reset(nb);
-    for (int b = 0; b < nb; ++b) qp.setRigidMass(b, 1.0 + b, Mat3::Identity(), Vec3(0.1, 0.2, 0.3));
-    for (int k = 0; k < m; ++k) {
-      Vec6 J0, J1;
-      for (int i = 0; i < 6; ++i) {
-        const int r0 = static_cast<int>(gen() % 5), r1 = static_cast<int>(gen() % 5);
-        J0[i] = r0 < 2 ? 0.0 : r0 - 3.0;
-        J1[i] = r1 < 2 ? 0.0 : r1 - 3.0;
-      }
-      if (J0.isZero()) J0[0] = 1.0;
-      const int b0 = static_cast<int>(gen() % static_cast<unsigned>(nb));
-      const int b1 = nb > 1 && gen() % 2 ? (b0 + 1) % nb : -1;
-      qp.addRow(RowType::Inequality, b0, J0, b1, J1, static_cast<double>(static_cast<int>(gen() % 7) - 3), 0);
-    }
-    qp.finalize();
+    const int m = integerRows(gen, false, &qp);
     std::vector<unsigned char> flags(static_cast<size_t>(m));
     for (auto& f : flags) f = gen() % 2;
     solver.solve(qp, sol, flags.data());
@@ -645,23 +654,7 @@ TEST(SolverActiveSet, IncrementalFactorWithoutRegularization) {
   int failed_pivots = 0;
   constexpr int kTrials = 20000;
   for (int trial = 0; trial < kTrials; ++trial) {
-    const int nb = 1 + static_cast<int>(gen() % 3), m = 4 + static_cast<int>(gen() % 24);
-    qp.reset(nb);
-    for (int b = 0; b < nb; ++b) qp.setRigidMass(b, 1.0 + b, Mat3::Identity(), Vec3(0.1, 0.2, 0.3));
-    for (int k = 0; k < m; ++k) {
-      Vec6 J0, J1;
-      for (int i = 0; i < 6; ++i) {
-        const int r0 = static_cast<int>(gen() % 5), r1 = static_cast<int>(gen() % 5);
-        J0[i] = r0 < 2 ? 0.0 : r0 - 3.0;
-        J1[i] = r1 < 2 ? 0.0 : r1 - 3.0;
-      }
-      if (J0.isZero()) J0[0] = 1.0;
-      const int b0 = static_cast<int>(gen() % static_cast<unsigned>(nb));
-      const int b1 = nb > 1 && gen() % 2 ? (b0 + 1) % nb : -1;
-      const RowType type = gen() % 4 == 0 ? RowType::Equality : RowType::Inequality;
-      qp.addRow(type, b0, J0, b1, J1, static_cast<double>(static_cast<int>(gen() % 7) - 3), 0);
-    }
-    qp.finalize();
+    const int m = integerRows(gen, true, &qp);
     std::vector<unsigned char> flags(static_cast<size_t>(m));
     for (auto& f : flags) f = gen() % 2;
     const SolveStats st = solver.solve(qp, sol, flags.data());
