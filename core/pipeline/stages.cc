@@ -546,11 +546,10 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     if (!(toc < 1.0)) {
       // Not clipped. A motion the clamp shortened (StepParams::max_step_*: the rows are linear in
       // the motion) goes on in the next round from here, the rest of the way to the targets, as
-      // long as the rest shrinks.
-      if (std::min(free_scale, least_scale) < 1.0 && progressing && !d.clipped &&
-          d.substeps < std::max(params_.max_substeps, params_.max_clamped_rounds))
-        continue;
-      if (std::min(free_scale, least_scale) < 1.0 && progressing && d.substeps < params_.max_substeps) continue;
+      // long as the rest shrinks: up to max_clamped_rounds while no round of this frame was
+      // clipped, max_substeps once one was.
+      const int rounds = d.clipped ? params_.max_substeps : std::max(params_.max_substeps, params_.max_clamped_rounds);
+      if (std::min(free_scale, least_scale) < 1.0 && progressing && d.substeps < rounds) continue;
       break;
     }
     // Two rounds in a row clipped at once: the contacts found at the first did not open a way.
