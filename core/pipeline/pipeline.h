@@ -75,6 +75,7 @@ struct PipelineCounters {
   std::uint64_t per_body_clips = 0, uniform_clips = 0, sweeps_certified = 0, held_rounds = 0;
   std::uint64_t rounds_shortened = 0, rounds_kept = 0;  ///< the solvers' (SolverCounters)
   std::uint64_t reacquisitions = 0;                    ///< the solvers' (SolverCounters)
+  std::uint64_t reversed_rounds = 0;                   ///< the solvers' (SolverCounters)
 };
 
 class Pipeline {

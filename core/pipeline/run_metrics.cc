@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <limits>
 #include <stdexcept>
 
 #include "math/stats.h"
@@ -25,6 +26,28 @@ double maxBodyDistance(const std::vector<Pose>& a, const std::vector<Pose>& b) {
   return m;
 }
 bool driven(const HandSample& s, size_t b) { return !s.has_target || s.has_target[b]; }
+
+/// Jitter (run_metrics.h) of one hand's bodies at poses X: `last` holds each body's motion of
+/// the frame before (NaN: none) and `prev` the poses of the frame before (empty: none); both are
+/// updated. Adds to *checked / *turned.
+void countJitter(const std::vector<Pose>& X, std::vector<Pose>* prev, std::vector<Vec3>* last, std::uint64_t* checked,
+                 std::uint64_t* turned) {
+  const Vec3 none = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+  if (last->size() != X.size()) last->assign(X.size(), none);
+  for (size_t b = 0; b < X.size(); ++b) {
+    const Vec3 d = prev->size() == X.size() ? Vec3(X[b].p - (*prev)[b].p) : none;
+    const Vec3& e = (*last)[b];
+    const double nd = d.norm(), ne = e.norm();
+    if (nd > MetricThresholds::kJitterMove && ne > MetricThresholds::kJitterMove) {
+      ++*checked;
+      if (d.dot(e) < MetricThresholds::kJitterCos * nd * ne) ++*turned;
+    } else if (d.allFinite() && e.allFinite()) {
+      ++*checked;
+    }
+    (*last)[b] = d;
+  }
+  *prev = X;
+}
 }  // namespace
 
 struct RunMetrics::Hand {
@@ -42,6 +65,10 @@ struct RunMetrics::Hand {
   };
   std::deque<Seen> window;
   std::vector<Pose> X_prev;  // God poses of the previous frame (empty: none)
+  // Jitter: each body's motion of the frame before (NaN: none), God and twin, and the twin's
+  // poses of the frame before.
+  std::vector<Vec3> god_motion, twin_motion;
+  std::vector<Pose> twin_prev;
 };
 
 RunMetrics::RunMetrics(const Scene& scene, std::vector<const HandModel*> models, std::vector<std::string> names,
@@ -83,8 +110,15 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
     hand.twin->step(input, hand.frame);
     if (hand.twin->started()) twin = &hand.twin->stepper().poses();
   }
+  if (twin && s.tracked) {
+    countJitter(*twin, &hand.twin_prev, &hand.twin_motion, &sum.twin_jitter_checked, &sum.twin_jitter_body_frames);
+  } else {
+    hand.twin_prev.clear();
+    hand.twin_motion.clear();
+  }
   if (!s.started || !s.X) {
     hand.X_prev.clear();
+    hand.god_motion.clear();
     return;
   }
   ++sum.started;
@@ -144,6 +178,12 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
     }
     hand.window.push_back(Hand::Seen{now, X, *twin});
   }
+  if (s.tracked && !s.held) {
+    std::vector<Pose> prev = hand.X_prev;
+    countJitter(X, &prev, &hand.god_motion, &sum.jitter_checked, &sum.jitter_body_frames);
+  } else {
+    hand.god_motion.clear();
+  }
   hand.X_prev = X;
 }
 
@@ -175,6 +215,10 @@ RunSummary RunMetrics::summary() const {
     all.moving_windows += s.moving_windows;
     all.frozen_windows += s.frozen_windows;
     all.stuck_frames += s.stuck_frames;
+    all.jitter_checked += s.jitter_checked;
+    all.jitter_body_frames += s.jitter_body_frames;
+    all.twin_jitter_checked += s.twin_jitter_checked;
+    all.twin_jitter_body_frames += s.twin_jitter_body_frames;
     all.clipped_frames += s.clipped_frames;
     all.toc_below_1e3 += s.toc_below_1e3;
     all.substeps += s.substeps;

@@ -11,6 +11,12 @@
 //                  scores ≤ ~0 (where the twin is outside it coincides with it, where the twin
 //                  sinks d it sits about d away). Median / p95 / max, frames above 5 mm.
 //   frozen         windows of 5 frames in which the twin moves > 2 mm but the God hand < 0.05 mm.
+//   jitter         body-frames in which a body that moved more than 0.1 mm since the frame before
+//                  turns back by more than 120° against its motion of that frame (also > 0.1 mm):
+//                  a hand shaking at the frame rate (seen: a palm pressed onto a curved surface,
+//                  rocking about one contact and back every frame, its fingertips 1-3 mm apart
+//                  from frame to frame). Counted for the God hand and for its free twin (what
+//                  the tracking itself does); the God hand's excess is the method's.
 //   stuck frames   frames in which the God hand moves < 0.05 mm although it is > 1 mm farther
 //                  from its targets than its free twin is (the model's best; without a twin:
 //                  > 1 mm from them) and the straight motion of every driven body to its target
@@ -75,6 +81,9 @@ struct HandSummary {
   std::uint64_t lag_above_5mm = 0;
   std::uint64_t moving_windows = 0, frozen_windows = 0;
   std::uint64_t stuck_frames = 0;
+  /// Body-frames checked for jitter (a body with a motion in this frame and the one before),
+  /// those that turned back (see above), and the same for the free twin.
+  std::uint64_t jitter_checked = 0, jitter_body_frames = 0, twin_jitter_checked = 0, twin_jitter_body_frames = 0;
   std::uint64_t clipped_frames = 0, toc_below_1e3 = 0;
   std::uint64_t substeps = 0, substeps_max = 0;
 };
@@ -145,6 +154,8 @@ struct MetricThresholds {
   static constexpr double kTinyToc = 1e-3;
   static constexpr double kTouching = 5e-4;     ///< m: a body this near the God side touches it
   static constexpr double kGapRange = 0.1;      ///< m: contact gaps beyond it are reported as it
+  static constexpr double kJitterMove = 1e-4;   ///< m: a body's motion from one frame to the next
+  static constexpr double kJitterCos = -0.5;    ///< turning back by more than 120°
 };
 
 }  // namespace godhand
@@ -173,20 +184,22 @@ inline bool plausible(const RunSummary& s, std::string* why) {
 
 /// One line per hand for a summary (the same words in every report).
 inline std::string describe(const HandSummary& h) {
-  char buf[768];
+  char buf[1024];
   std::snprintf(buf, sizeof buf,
                 "%s hand: excess lag (distance to the free twin beyond what the scene forces) median %.2f p95 %.2f max "
                 "%.2f mm, %llu of %zu frames above 5 mm; frozen %llu of %llu moving windows; stuck %llu frames; model "
                 "error (twin to targets: what the hand model cannot follow) median %.2f max %.2f mm; free tracking error "
                 "(no contact loaded) median %.2f max %.2f mm; gap to the full surface while touching median %.3f p95 %.3f "
-                "max %.3f mm (%zu body-frames); clipped %llu frames (TOC < 1e-3 in %llu), rounds %llu",
+                "max %.3f mm (%zu body-frames); jitter (a body's motion turning back from one frame to the next) %llu of "
+                "%llu body-frames, free twin %llu; clipped %llu frames (TOC < 1e-3 in %llu), rounds %llu",
                 h.name.c_str(), h.excess_lag_m.median * 1e3, h.excess_lag_m.p95 * 1e3, h.excess_lag_m.max * 1e3,
                 static_cast<unsigned long long>(h.lag_above_5mm), h.excess_lag_m.count,
                 static_cast<unsigned long long>(h.frozen_windows), static_cast<unsigned long long>(h.moving_windows),
                 static_cast<unsigned long long>(h.stuck_frames), h.model_error_m.median * 1e3, h.model_error_m.max * 1e3,
                 h.free_tracking_error_m.median * 1e3, h.free_tracking_error_m.max * 1e3, h.contact_gap_m.median * 1e3,
                 h.contact_gap_m.p95 * 1e3, h.contact_gap_m.max * 1e3, h.contact_gap_m.count,
-                static_cast<unsigned long long>(h.clipped_frames), static_cast<unsigned long long>(h.toc_below_1e3),
+                static_cast<unsigned long long>(h.jitter_body_frames), static_cast<unsigned long long>(h.jitter_checked),
+                static_cast<unsigned long long>(h.twin_jitter_body_frames), static_cast<unsigned long long>(h.clipped_frames), static_cast<unsigned long long>(h.toc_below_1e3),
                 static_cast<unsigned long long>(h.substeps));
   return buf;
 }

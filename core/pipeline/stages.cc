@@ -260,6 +260,7 @@ bool HandSolver::start(const HandInput& in) {
   std::fill(rotation_cap_.begin(), rotation_cap_.end(), std::numeric_limits<double>::infinity());
   std::fill(blocked_.begin(), blocked_.end(), 0);
   std::fill(clear_reach_.begin(), clear_reach_.end(), -1.0);
+  rotation_trust_ = 1.0;
   started_ = true;
   last_errors_ = jointErrors(model_, X_start_.data());
   return true;
@@ -454,6 +455,39 @@ JointErrors HandSolver::clip(double toc_min) {
   return stepper_->lastReport().joint_errors;
 }
 
+bool HandSolver::reversedRound(bool* have_last) {
+  // The round's motion (round_start_ -> the poses now) as one vector over the bodies: each body's
+  // translation, and its rotation times its bounding radius (the motion of its far points).
+  const std::vector<Pose>& X = stepper_->poses();
+  const size_t n = model_.bodies.size();
+  round_motion_.resize(2 * n);
+  double along = 0.0, now2 = 0.0, before2 = 0.0;
+  for (size_t b = 0; b < n; ++b) {
+    const Vec3 dp = X[b].p - round_start_[b].p;
+    const Vec3 dth = geo::boundingRadius(model_.bodies[b].shape) * logRotation(X[b].q * round_start_[b].q.inverse());
+    if (*have_last) {
+      along += dp.dot(last_round_motion_[2 * b]) + dth.dot(last_round_motion_[2 * b + 1]);
+      before2 += last_round_motion_[2 * b].squaredNorm() + last_round_motion_[2 * b + 1].squaredNorm();
+    }
+    now2 += dp.squaredNorm() + dth.squaredNorm();
+    round_motion_[2 * b] = dp;
+    round_motion_[2 * b + 1] = dth;
+  }
+  // Turned back by more than 120° against the round before, by more than 0.1 mm: the thresholds
+  // of the jitter figure (run_metrics.h), here between rounds.
+  const bool reversed = *have_last && now2 > kReversalFloor * kReversalFloor &&
+                        along < kReversalCos * std::sqrt(now2 * before2);
+  last_round_motion_.swap(round_motion_);
+  *have_last = true;
+  if (reversed) {
+    ++counters_.reversed_rounds;
+    rotation_trust_ = std::max(kMinRotationTrust, 0.5 * rotation_trust_);
+  } else {
+    rotation_trust_ = std::min(1.0, kRotationTrustGrowth * rotation_trust_);
+  }
+  return reversed;
+}
+
 const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
   HandProposal& p = proposal_;
   StepDiagnostics& d = p.diag;
@@ -494,7 +528,10 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
   // next round solves the rest of the way towards the same targets from that pose: a body that
   // met a surface slides along it instead of ending the frame, and the bodies whose paths are
   // free go on.
+  bool have_last_motion = false;  // a round of this frame was taken (reversedRound compares)
   for (;;) {
+    round_start_ = stepper_->poses();
+    si.rotation_trust = rotation_trust_;
     Clock::time_point t0 = Clock::now();
     generateContacts(in);
     d.times.contacts_us += usSince(t0);
@@ -506,10 +543,10 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     const StepReport& sr = stepper_->step(si);
     ++d.substeps;
     if (trace_ >= 1)
-      emit(params_, "trace: frame %llu round %d status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu scale %.3g\n",
+      emit(params_, "trace: frame %llu round %d status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu scale %.3g trust %.3g\n",
                    static_cast<unsigned long long>(frame), d.substeps, static_cast<int>(sr.solve.status),
                    sr.solve.kkt_residual, sr.projection_iterations, sr.joint_errors.gap, sr.rows, sr.flags,
-                   contacts_.size(), sr.motion_scale);
+                   contacts_.size(), sr.motion_scale, si.rotation_trust);
     d.times.assembly_us += sr.times.coupling_us + sr.times.assembly_us;
     d.times.solve_us += sr.times.solve_us;
     d.times.integrate_us += sr.times.integrate_us + sr.times.project_us;
@@ -538,17 +575,20 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     // while either grows from round to round; 5 % is enough to tell growth from a hand whose
     // targets sit deep inside an object (it asks for the same clamped motion every round). A
     // 25 % threshold stopped rounds at 0.777 -> 0.969 with most of the frame's lag left.
+    // (Measured under the full rotation limits: a rotation trust growing back is no progress.)
     const double free_scale = sr.free_motion_scale, least_scale = sr.motion_scale;
-    const bool progressing = d.substeps == 1 || free_scale > kRoundProgress * last_free_scale ||
-                             least_scale > kRoundProgress * last_least_scale;
-    last_free_scale = free_scale;
-    last_least_scale = least_scale;
+    const double free_asked = sr.asked_free_motion_scale, least_asked = sr.asked_motion_scale;
+    const bool progressing = d.substeps == 1 || free_asked > kRoundProgress * last_free_scale ||
+                             least_asked > kRoundProgress * last_least_scale;
+    last_free_scale = free_asked;
+    last_least_scale = least_asked;
     if (!(toc < 1.0)) {
       // Not clipped. A motion the clamp shortened (StepParams::max_step_*: the rows are linear in
       // the motion) goes on in the next round from here, the rest of the way to the targets, as
       // long as the rest shrinks: up to max_clamped_rounds while no round of this frame was
       // clipped, max_substeps once one was.
       const int rounds = d.clipped ? params_.max_substeps : std::max(params_.max_substeps, params_.max_clamped_rounds);
+      reversedRound(&have_last_motion);
       if (std::min(free_scale, least_scale) < 1.0 && progressing && d.substeps < rounds) continue;
       break;
     }
@@ -560,6 +600,7 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     t0 = Clock::now();
     d.joint_errors = clip(toc);
     d.times.integrate_us += usSince(t0);
+    reversedRound(&have_last_motion);
     if (d.substeps >= params_.max_substeps || stuck_round) break;
   }
   d.started_inside = inside;

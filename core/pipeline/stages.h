@@ -238,6 +238,9 @@ struct SolverCounters {
   /// Of the rounds at TOC_min, those whose re-closing would hit as well: the round does not move
   /// the hand (it stays at the round's start).
   std::uint64_t held_rounds = 0;
+  /// Rounds that went back against the round before them (the rows' linearisation overshot on
+  /// a curved surface, and the next round would swing back again): the frame ends there.
+  std::uint64_t reversed_rounds = 0;
 };
 struct ResolverCounters {
   std::uint64_t frames = 0, clipped_steps = 0, started_inside = 0, forces_clamped = 0, held = 0;
@@ -302,6 +305,26 @@ class HandSolver {
   double sweepLastMotion(bool* started_inside);
   /// Clips the last motion (METHOD.md §2 step 5): see stages.cc.
   JointErrors clip(double toc_min);
+  /// Whether the round just taken (round_start_ -> the stepper's poses) turned back against the
+  /// round before it (*have_last: one was taken this frame; set here); counted, and the rotation
+  /// trust halved (else grown by kRotationTrustGrowth, up to 1).
+  bool reversedRound(bool* have_last);
+  std::vector<Pose> round_start_;
+  std::vector<Vec3> round_motion_, last_round_motion_;  // per body: Δp, ρ θ
+  // The rotation trust region (StepInput::rotation_trust), kept across frames. A palm pressed
+  // onto a curved surface towards targets deep inside it turns about its one contact until
+  // another point of its face meets the surface, and the next round, from the contact found
+  // there, turns it back: rows linear in the rotation overshoot. Seen on pinch + bunny: the palm
+  // rocked 0.06 rad every round, the fingertips 1-3 mm apart from frame to frame (50 % of the
+  // body-frames turned back), three clipped rounds a frame. Halving the rotation allowed on each
+  // round that turns back (and growing it back by 10 % per round that does not) lets the hand
+  // settle; only the rotation: scaling the translation too slowed sliding (excess lag p95 on the
+  // two-hand bunny case 58 -> 86 mm).
+  double rotation_trust_ = 1.0;
+  static constexpr double kMinRotationTrust = 1.0 / 32;
+  static constexpr double kRotationTrustGrowth = 1.1;
+  static constexpr double kReversalCos = -0.5;     ///< a turn of more than 120°
+  static constexpr double kReversalFloor = 1e-4;   ///< m: rounds moving less are no evidence
 
   const HandModel& model_;
   PipelineParams params_;

@@ -136,6 +136,7 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
   // that no body is asked to move more than max_step_translation / max_step_rotation in one
   // step. The contact rows are linear in the motion; their error grows with the square of the
   // rotation, and a target far inside an object would otherwise ask for it every step.
+  const double trust = std::clamp(in.rotation_trust, 0.0, 1.0);
   if (params_.clamp_contact_bodies_apart) {
     // Bodies near a contact are clamped each on its own (their rows hold them anyway), so that
     // one finger pressing towards a target deep inside an object does not slow the free ones;
@@ -146,35 +147,49 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
       const Contact& c = in.contacts[i];
       if (c.body >= 0 && c.body < n && c.distance < params_.contact_rotation_distance) near_[static_cast<size_t>(c.body)] = 1;
     }
-    auto limit = [&](int b, double max_rot) {
+    // Per body: the scale under the limits with the rotation trust, and under the full ones.
+    auto limit = [&](int b, double max_rot, double* full) {
       const Vec6& zu = qp_.unconstrained(b);
       const double trans = zu.head<3>().norm() * dt2k, rot = zu.tail<3>().norm() * dt2k;
       double s = 1.0;
       if (trans > params_.max_step_translation) s = std::min(s, params_.max_step_translation / trans);
-      if (rot > max_rot) s = std::min(s, max_rot / rot);
+      *full = s;
+      if (rot > max_rot) *full = std::min(*full, max_rot / rot);
+      if (rot > trust * max_rot) s = std::min(s, trust * max_rot / rot);
       return s;
     };
-    double free_scale = 1.0;
+    double free_scale = 1.0, free_full = 1.0, full = 1.0;
     for (int b = 0; b < n; ++b)
-      if (!near_[static_cast<size_t>(b)]) free_scale = std::min(free_scale, limit(b, params_.max_step_rotation));
-    double smallest = free_scale;
+      if (!near_[static_cast<size_t>(b)]) {
+        free_scale = std::min(free_scale, limit(b, params_.max_step_rotation, &full));
+        free_full = std::min(free_full, full);
+      }
+    double smallest = free_scale, smallest_full = free_full;
     for (int b = 0; b < n; ++b) {
       double s = free_scale;
-      if (near_[static_cast<size_t>(b)])
-        s = std::min(s, limit(b, std::min(params_.max_step_rotation, params_.max_step_rotation_in_contact)));
+      if (near_[static_cast<size_t>(b)]) {
+        s = std::min(s, limit(b, std::min(params_.max_step_rotation, params_.max_step_rotation_in_contact), &full));
+        smallest_full = std::min(smallest_full, std::min(free_full, full));
+      }
       if (s < 1.0) qp_.unconstrained(b) *= s;
       smallest = std::min(smallest, s);
     }
+    report_.asked_motion_scale = smallest_full;
+    report_.asked_free_motion_scale = free_full;
     report_.motion_scale = smallest;
     report_.free_motion_scale = free_scale;
   } else {
-    double scale = 1.0;
+    double scale = 1.0, full = 1.0;
     const double dt2k = dt2;
     for (int b = 0; b < n; ++b) {
       const Vec6& zu = qp_.unconstrained(b);
       const double trans = zu.head<3>().norm() * dt2k, rot = zu.tail<3>().norm() * dt2k;
-      if (trans > params_.max_step_translation) scale = std::min(scale, params_.max_step_translation / trans);
-      if (rot > params_.max_step_rotation) scale = std::min(scale, params_.max_step_rotation / rot);
+      if (trans > params_.max_step_translation) {
+        scale = std::min(scale, params_.max_step_translation / trans);
+        full = std::min(full, params_.max_step_translation / trans);
+      }
+      if (rot > params_.max_step_rotation) full = std::min(full, params_.max_step_rotation / rot);
+      if (rot > trust * params_.max_step_rotation) scale = std::min(scale, trust * params_.max_step_rotation / rot);
     }
     // Bodies close to a contact: the continuous collision sweeps the motion as a rotation about
     // the body origin, whose points bulge off the straight chord by ≈ θ² r / 8 mid-step; near a
@@ -184,14 +199,16 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
         const Contact& c = in.contacts[i];
         if (c.body < 0 || c.body >= n || !(c.distance < params_.contact_rotation_distance)) continue;
         const double rot = qp_.unconstrained(c.body).tail<3>().norm() * dt2k;
-        if (rot > params_.max_step_rotation_in_contact)
-          scale = std::min(scale, params_.max_step_rotation_in_contact / rot);
+        if (rot > params_.max_step_rotation_in_contact) full = std::min(full, params_.max_step_rotation_in_contact / rot);
+        if (rot > trust * params_.max_step_rotation_in_contact)
+          scale = std::min(scale, trust * params_.max_step_rotation_in_contact / rot);
       }
     if (scale < 1.0) {
       for (int b = 0; b < n; ++b) qp_.unconstrained(b) *= scale;
       report_.motion_scale = scale;
       report_.free_motion_scale = scale;
     }
+    report_.asked_motion_scale = report_.asked_free_motion_scale = full;
   }
   const auto t1 = Clock::now();
 
@@ -290,6 +307,8 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
                                                           : pgs_.solve(qp_, sol_, warm_lambda_.data());
       report_.motion_scale = std::min(report_.motion_scale, scale * report_.motion_scale);
       report_.free_motion_scale *= scale;
+      report_.asked_motion_scale = std::min(report_.asked_motion_scale, scale * report_.asked_motion_scale);
+      report_.asked_free_motion_scale *= scale;
       if (report_.solve.status == SolveStatus::IterationLimit || report_.solve.status == SolveStatus::Stalled) {
         report_.flags |= kFlagSolverInexact;
         ++counters_.inexact_solves;

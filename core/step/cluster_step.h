@@ -148,6 +148,9 @@ struct StepReport {
   double contact_violation = 0.0;   ///< m: contact points further in than allowed after the projection
   double motion_scale = 1.0;        ///< < 1 when the motion clamp or a rotation cap scaled the coupling (smallest)
   double free_motion_scale = 1.0;   ///< the scale of the bodies away from contacts
+  /// The same two under the full rotation limits (StepInput::rotation_trust = 1): how much of the
+  /// rest of the motion the coupling asks for beyond the clamp itself.
+  double asked_motion_scale = 1.0, asked_free_motion_scale = 1.0;
   std::uint32_t flags = 0;
   int rejected_targets = 0, rejected_contacts = 0;
   int shortened = 0;                ///< halvings of a motion whose projection opened the joints (0: none)
@@ -171,6 +174,10 @@ struct StepInput {
   /// are linear, and a large turn about the body origin swings the contact point along an arc
   /// into the surface (θ² r / 2 at the end), which the sweep rightly refuses.
   const double* rotation_cap = nullptr;
+  /// The motion clamp's rotation limits (StepParams::max_step_rotation, _in_contact) times this,
+  /// in (0, 1]: a trust region the caller shrinks where its rounds turn the hand back and forth
+  /// (HandSolver: rows linear in the rotation overshoot on a curved surface).
+  double rotation_trust = 1.0;
 };
 
 class ClusterStepper {

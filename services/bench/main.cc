@@ -608,13 +608,15 @@ int main(int argc, char** argv) {
   std::printf("  sweeps %llu (%llu answered without a query), conservative-advancement iterations %llu (%.2f per sweep), "
               "%llu stopped at the iteration bound; "
               "clipped rounds: %llu with each body at its own TOC, %llu with the hand at TOC_min, %llu left where they started; "
-              "rounds whose projection opened the joints: %llu shortened, %llu of them kept the last state\n",
+              "rounds whose projection opened the joints: %llu shortened, %llu of them kept the last state; "
+              "rounds that went back against the round before (their clamp halved): %llu\n",
               static_cast<unsigned long long>(c.sweeps), static_cast<unsigned long long>(c.sweeps_certified),
               static_cast<unsigned long long>(c.sweep_iterations),
               c.sweeps ? static_cast<double>(c.sweep_iterations) / static_cast<double>(c.sweeps) : 0.0,
               static_cast<unsigned long long>(c.sweeps_capped), static_cast<unsigned long long>(c.per_body_clips),
               static_cast<unsigned long long>(c.uniform_clips), static_cast<unsigned long long>(c.held_rounds),
-              static_cast<unsigned long long>(c.rounds_shortened), static_cast<unsigned long long>(c.rounds_kept));
+              static_cast<unsigned long long>(c.rounds_shortened), static_cast<unsigned long long>(c.rounds_kept),
+              static_cast<unsigned long long>(c.reversed_rounds));
   std::printf("  %s\n", describe(shares).c_str());
   for (const ObjectTrack& t : tracks) {
     const Vec3 d = t.final_pose.p - t.start.p;
@@ -664,6 +666,9 @@ int main(int argc, char** argv) {
     j["moving_windows"] = all.moving_windows;
     j["frozen_windows"] = all.frozen_windows;
     j["stuck_frames"] = all.stuck_frames;
+    j["jitter_body_frames"] = all.jitter_body_frames;
+    j["jitter_checked"] = all.jitter_checked;
+    j["twin_jitter_body_frames"] = all.twin_jitter_body_frames;
     j["model_error_m"] = toJson(all.model_error_m);
     j["contact_gap_m"] = toJson(all.contact_gap_m);
     j["clipped_frames"] = all.clipped_frames;
@@ -679,6 +684,7 @@ int main(int argc, char** argv) {
     j["clipped_steps"] = c.clipped_steps;
     j["lifted_starts"] = c.lifted_starts;
     j["reacquisitions"] = c.reacquisitions;
+    j["reversed_rounds"] = c.reversed_rounds;
     j["started_inside"] = c.started_inside;
     j["scene_pushouts"] = c.scene_pushouts;
     j["scene_pushouts_unresolved"] = c.pushout_unresolved;

@@ -145,6 +145,9 @@ nlohmann::json reportJson(const RunReport& r) {
     j["frozen_windows"] = r.plausibility.all.frozen_windows;
     j["moving_windows"] = r.plausibility.all.moving_windows;
     j["stuck_frames"] = r.plausibility.all.stuck_frames;
+    j["jitter_body_frames"] = r.plausibility.all.jitter_body_frames;
+    j["jitter_checked"] = r.plausibility.all.jitter_checked;
+    j["twin_jitter_body_frames"] = r.plausibility.all.twin_jitter_body_frames;
   }
   j["contacts_max"] = r.contacts_max;
   j["kkt_residual_max"] = r.kkt_max;

@@ -535,5 +535,45 @@ TEST(Plausibility, StuckFramesCountAHandThatCouldMoveButDoesNot) {
   EXPECT_TRUE(plausible(b, &why)) << why;
 }
 
+// The jitter figure counts a body whose motion turns back from one frame to the next: a fed God
+// pose shaking ±1 mm about a target that moves 1 mm per frame (a second, deliberately shaking
+// "implementation"), against the pipeline following the same target (no turn). The free twin
+// follows the target and never turns back.
+TEST(Plausibility, JitterCountsABodyThatTurnsBackEveryFrame) {
+  Scene scene = sceneOf({meshObject("plate", boxMesh(Vec3(0.5, 0.5, 0.05)), at(0, 0, -1.0))});
+  const HandModel m = bodyModel("sphere { radius: 0.01 }");
+  const PipelineParams p = params(1.0 / 100);
+  Pipeline pipe(scene, {&m}, p);
+  RunMetrics shaking(scene, {&m}, {"probe"}, p), following(scene, {&m}, {"probe"}, p);
+  const int frames = 30;
+  for (int k = 0; k < frames; ++k) {
+    const Pose target = at(0.001 * k, 0, 0.1);
+    // 1 mm ahead of the target on even frames, 1 mm behind on odd ones: its steps alternate
+    // −1 mm and +3 mm, each turning back against the one before.
+    const Pose shake = at(0.001 * k + (k % 2 == 0 ? 0.001 : -0.001), 0, 0.1);
+    const HandInput in{true, &target, nullptr};
+    pipe.step({in});
+    HandSample s;
+    s.started = s.tracked = true;
+    s.targets = &target;
+    s.X = &shake;
+    shaking.add(0, s, in, pipe.resolver().collision());
+    s.X = pipe.poses(0).data();
+    following.add(0, s, in, pipe.resolver().collision());
+  }
+  const RunSummary a = shaking.summary(), b = following.summary();
+  std::printf("[figure] jitter: a shaking sphere %llu of %llu body-frames, the pipeline's %llu of %llu, twin %llu\n",
+              static_cast<unsigned long long>(a.all.jitter_body_frames), static_cast<unsigned long long>(a.all.jitter_checked),
+              static_cast<unsigned long long>(b.all.jitter_body_frames), static_cast<unsigned long long>(b.all.jitter_checked),
+              static_cast<unsigned long long>(b.all.twin_jitter_body_frames));
+  // Frames 2 … 29 have a motion and one before it: 28 checked, every one turning back.
+  EXPECT_EQ(a.all.jitter_checked, static_cast<std::uint64_t>(frames - 2));
+  EXPECT_EQ(a.all.jitter_body_frames, static_cast<std::uint64_t>(frames - 2));
+  EXPECT_EQ(b.all.jitter_body_frames, 0u);
+  EXPECT_GE(b.all.jitter_checked, static_cast<std::uint64_t>(frames - 4));
+  EXPECT_EQ(b.all.twin_jitter_body_frames, 0u);
+  EXPECT_EQ(a.all.twin_jitter_body_frames, 0u);
+}
+
 }  // namespace
 }  // namespace godhand
