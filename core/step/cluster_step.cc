@@ -136,7 +136,8 @@ const StepReport& ClusterStepper::step(const StepInput& in) {
   // that no body is asked to move more than max_step_translation / max_step_rotation in one
   // step. The contact rows are linear in the motion; their error grows with the square of the
   // rotation, and a target far inside an object would otherwise ask for it every step.
-  const double trust = std::clamp(in.rotation_trust, 0.0, 1.0);
+  // (A trust outside (0, 1), NaN included, is none: 1.)
+  const double trust = in.rotation_trust > 0.0 && in.rotation_trust < 1.0 ? in.rotation_trust : 1.0;
   if (params_.clamp_contact_bodies_apart) {
     // Bodies near a contact are clamped each on its own (their rows hold them anyway), so that
     // one finger pressing towards a target deep inside an object does not slow the free ones;

@@ -176,7 +176,8 @@ struct StepInput {
   const double* rotation_cap = nullptr;
   /// The motion clamp's rotation limits (StepParams::max_step_rotation, _in_contact) times this,
   /// in (0, 1]: a trust region the caller shrinks where its rounds turn the hand back and forth
-  /// (HandSolver: rows linear in the rotation overshoot on a curved surface).
+  /// (HandSolver: rows linear in the rotation overshoot on a curved surface). Outside (0, 1),
+  /// NaN included: 1.
   double rotation_trust = 1.0;
 };
 

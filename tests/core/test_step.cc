@@ -19,6 +19,7 @@
 #include <cstdio>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -293,6 +294,47 @@ TEST(HandFreeSpace, RotatingRigidMotionIsTrackedEveryStep) {
   EXPECT_LT(curled.first, 1e-9);
   EXPECT_LT(curled.second, 1e-9);
   EXPECT_LT(still, 1e-9);
+}
+
+// The rotation trust (StepInput::rotation_trust) scales the clamp's rotation limit only: a free
+// body asked to turn 1 rad with a 0.5 rad clamp turns 0.5 rad, and 0.125 rad under a trust of
+// 1/4 (analytic: one free body reaches the scaled goal exactly); the asked scale stays the clamp's
+// own (0.5), a translation-only goal is not slowed, and a trust outside (0, 1) is none.
+TEST(HandFreeSpace, RotationTrustScalesTheClampsRotationOnly) {
+  const HandModel& m = ball();
+  for (const bool apart : {false, true}) {  // both clamps: one scale, or bodies near contacts apart
+    SCOPED_TRACE(apart ? "clamp_contact_bodies_apart" : "one scale");
+    StepParams prm;
+    prm.max_step_rotation = 0.5;
+    prm.max_step_rotation_in_contact = 0.5;
+    prm.max_step_translation = 0.03;
+    prm.clamp_contact_bodies_apart = apart;
+    std::unique_ptr<ClusterStepper> s;
+    const StepReport* r = nullptr;
+    // One step from rest towards `target` under `trust`: the angle turned (rad).
+    auto turned = [&](double trust, const Pose& target) {
+      s = std::make_unique<ClusterStepper>(m, prm);
+      s->reset({Pose{}});
+      StepInput in{&target, nullptr, nullptr, 0};
+      in.rotation_trust = trust;
+      r = &s->step(in);
+      return logRotation(s->poses()[0].q).norm();
+    };
+    const Pose turn{Vec3::Zero(), Quat(Eigen::AngleAxisd(1.0, Vec3::UnitZ()))};
+    EXPECT_NEAR(turned(1.0, turn), 0.5, 1e-9);
+    EXPECT_NEAR(r->motion_scale, 0.5, 1e-12);
+    EXPECT_NEAR(turned(0.25, turn), 0.125, 1e-9);
+    EXPECT_NEAR(r->motion_scale, 0.125, 1e-12);
+    EXPECT_NEAR(r->asked_motion_scale, 0.5, 1e-12);
+    EXPECT_NEAR(r->asked_free_motion_scale, 0.5, 1e-12);
+    for (double none : {0.0, -1.0, 2.0, std::numeric_limits<double>::quiet_NaN()}) {
+      EXPECT_NEAR(turned(none, turn), 0.5, 1e-9) << none;
+    }
+    const Pose slide{Vec3(0.02, 0, 0), Quat::Identity()};  // within the translation clamp
+    turned(0.25, slide);
+    EXPECT_NEAR(s->poses()[0].p.x(), 0.02, 1e-9);
+    EXPECT_EQ(r->motion_scale, 1.0);
+  }
 }
 
 // ---------------------------------------------------------------------------------------------
