@@ -238,8 +238,8 @@ struct SolverCounters {
   /// Of the rounds at TOC_min, those whose re-closing would hit as well: the round does not move
   /// the hand (it stays at the round's start).
   std::uint64_t held_rounds = 0;
-  /// Rounds that went back against the round before them (the rows' linearisation overshot on
-  /// a curved surface, and the next round would swing back again): the frame ends there.
+  /// Rounds that turned the hand back against the round before them (the rows' linearisation
+  /// overshot on a curved surface): each halved the rotation trust (HandSolver::reversedRound).
   std::uint64_t reversed_rounds = 0;
 };
 struct ResolverCounters {
