@@ -101,7 +101,7 @@ struct PipelineParams {
   /// Threads one HandSolver spreads its bodies' collision queries over (contacts and sweeps: the
   /// bodies' queries are independent, each thread has its own collision scratch, and the results
   /// are merged in body order, so they are the same for every count). The Pipeline gives each
-  /// solver threads / (the hands stepped at once); with trace on, 1.
+  /// solver all its `threads` (a light hand leaves its core to the other's bodies); with trace on, 1.
   int body_threads = 1;
 
   void validate() const;              ///< throws std::invalid_argument naming the field
