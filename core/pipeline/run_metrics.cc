@@ -27,15 +27,15 @@ double maxBodyDistance(const std::vector<Pose>& a, const std::vector<Pose>& b) {
 }
 bool driven(const HandSample& s, size_t b) { return !s.has_target || s.has_target[b]; }
 
-/// Jitter (run_metrics.h) of one hand's bodies at poses X: `last` holds each body's motion of
-/// the frame before (NaN: none) and `prev` the poses of the frame before (empty: none); both are
-/// updated. Adds to *checked / *turned.
-void countJitter(const std::vector<Pose>& X, std::vector<Pose>* prev, std::vector<Vec3>* last, std::uint64_t* checked,
-                 std::uint64_t* turned) {
+/// Jitter (run_metrics.h) of one hand's bodies at poses X, `prev` the poses of the frame before
+/// (empty: none): `last` holds each body's motion of the frame before (NaN: none) and is updated.
+/// Adds to *checked / *turned.
+void countJitter(const std::vector<Pose>& X, const std::vector<Pose>& prev, std::vector<Vec3>* last,
+                 std::uint64_t* checked, std::uint64_t* turned) {
   const Vec3 none = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
   if (last->size() != X.size()) last->assign(X.size(), none);
   for (size_t b = 0; b < X.size(); ++b) {
-    const Vec3 d = prev->size() == X.size() ? Vec3(X[b].p - (*prev)[b].p) : none;
+    const Vec3 d = prev.size() == X.size() ? Vec3(X[b].p - prev[b].p) : none;
     const Vec3& e = (*last)[b];
     const double nd = d.norm(), ne = e.norm();
     if (nd > MetricThresholds::kJitterMove && ne > MetricThresholds::kJitterMove) {
@@ -46,7 +46,6 @@ void countJitter(const std::vector<Pose>& X, std::vector<Pose>* prev, std::vecto
     }
     (*last)[b] = d;
   }
-  *prev = X;
 }
 }  // namespace
 
@@ -111,7 +110,8 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
     if (hand.twin->started()) twin = &hand.twin->stepper().poses();
   }
   if (twin && s.tracked) {
-    countJitter(*twin, &hand.twin_prev, &hand.twin_motion, &sum.twin_jitter_checked, &sum.twin_jitter_body_frames);
+    countJitter(*twin, hand.twin_prev, &hand.twin_motion, &sum.twin_jitter_checked, &sum.twin_jitter_body_frames);
+    hand.twin_prev = *twin;
   } else {
     hand.twin_prev.clear();
     hand.twin_motion.clear();
@@ -179,8 +179,7 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
     hand.window.push_back(Hand::Seen{now, X, *twin});
   }
   if (s.tracked && !s.held) {
-    std::vector<Pose> prev = hand.X_prev;
-    countJitter(X, &prev, &hand.god_motion, &sum.jitter_checked, &sum.jitter_body_frames);
+    countJitter(X, hand.X_prev, &hand.god_motion, &sum.jitter_checked, &sum.jitter_body_frames);
   } else {
     hand.god_motion.clear();
   }
