@@ -242,8 +242,8 @@ async function caseLive() {
     samples.push(s);
     const fresh = (drawn) => Object.values(drawn).filter((d) => !d.stale && d.ghostVisible).length;
     // A ghost that sits where its God hand is hides inside it (the God hand follows its targets in
-    // free space): the picture is taken when every hand's ghost is at least 8 mm from its God hand.
-    const apart = (drawn) => Object.values(drawn).filter((d) => !d.stale && d.ghostVisible && separation(d) > 0.008).length;
+    // free space): the picture is taken when every hand's ghost is at least 5 mm from its God hand.
+    const apart = (drawn) => Object.values(drawn).filter((d) => !d.stale && d.ghostVisible && separation(d) > 0.005).length;
     // Both hands not stale for the last 4 samples (~0.4 s): a screenshot may show a frame drawn a
     // little before it was asked for.
     freshRun = fresh(s.drawn) === 2 ? freshRun + 1 : 0;
