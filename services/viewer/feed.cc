@@ -1,5 +1,7 @@
 #include "viewer/feed.h"
 
+#include <algorithm>
+
 #include <nlohmann/json.hpp>
 
 namespace godhand::viewer {
@@ -71,7 +73,8 @@ void Hub::close(int client) {
   if (it == clients_.end()) return;
   ++totals_.closed;
   totals_.sent += it->second.stats.sent;
-  totals_.dropped += it->second.stats.dropped;
+  totals_.dropped += it->second.stats.dropped + it->second.waiting.size();  // never sent
+  totals_.superseded += it->second.stats.superseded;
   totals_.rejected += it->second.stats.rejected;
   clients_.erase(it);
 }
@@ -83,15 +86,52 @@ void Hub::reject(Client& c, const std::string& why) {
   if (c.sink->buffered() + text.size() <= limits_.max_queued_bytes) c.sink->sendText(text);
 }
 
-void Hub::deliver(Client& c, std::uint32_t sub, const std::string& payload, std::uint64_t time_ns) {
+bool Hub::sendable(const Client& c, std::size_t size) const {
+  if (c.stats.acks && c.stats.sent - c.stats.acked >= limits_.max_unacked) return false;
+  const std::size_t queued = c.sink->buffered();
+  return queued + size <= limits_.send_below_bytes || (queued == 0 && size <= limits_.max_queued_bytes);
+}
+
+void Hub::send(Client& c, std::uint32_t sub, const std::string& payload, std::uint64_t time_ns) {
   const std::size_t size = 13 + payload.size();
-  if (c.sink->buffered() + size > limits_.max_queued_bytes) {
-    ++c.stats.dropped;
-    return;
-  }
   c.sink->sendBinary(messageData(sub, time_ns, payload));
   ++c.stats.sent;
   c.stats.sent_bytes += size;
+}
+
+void Hub::flush(Client& c) {
+  std::size_t done = 0;
+  while (done < c.waiting.size() && sendable(c, 13 + c.waiting[done].payload.size())) {
+    const Waiting& w = c.waiting[done];
+    send(c, w.sub, w.payload, w.time_ns);
+    ++done;
+  }
+  if (done > 0) c.waiting.erase(c.waiting.begin(), c.waiting.begin() + static_cast<std::ptrdiff_t>(done));
+  c.stats.waiting = static_cast<int>(c.waiting.size());
+}
+
+void Hub::flush() {
+  for (auto& [id, c] : clients_) flush(c);
+}
+
+void Hub::deliver(Client& c, std::uint32_t sub, const std::string& key, const std::string& payload, std::uint64_t time_ns) {
+  const std::size_t size = 13 + payload.size();
+  if (size > limits_.max_queued_bytes) {  // could never be sent
+    ++c.stats.dropped;
+    return;
+  }
+  flush(c);  // older waiting messages go first
+  if (c.waiting.empty() && sendable(c, size)) return send(c, sub, payload, time_ns);
+  for (Waiting& w : c.waiting) {
+    if (w.sub != sub || w.key != key) continue;
+    w.payload = payload;  // the newer one takes the older one's place in line
+    w.time_ns = time_ns;
+    ++c.stats.dropped;
+    ++c.stats.superseded;
+    return;
+  }
+  c.waiting.push_back(Waiting{sub, key, payload, time_ns});
+  c.stats.waiting = static_cast<int>(c.waiting.size());
 }
 
 namespace {
@@ -134,7 +174,7 @@ void Hub::onText(int client, const std::string& text) {
       if (ch->latched) {
         auto l = latched_.find(cid);
         if (l != latched_.end())
-          for (const auto& [key, m] : l->second) deliver(c, sid, m.first, m.second);
+          for (const auto& [key, m] : l->second) deliver(c, sid, key, m.first, m.second);
       }
     }
   } else if (o == "unsubscribe") {
@@ -145,8 +185,23 @@ void Hub::onText(int client, const std::string& text) {
       const long long v = s.get<long long>();
       if (v < 0 || v > 0xffffffffLL || !c.subs.erase(static_cast<std::uint32_t>(v)))
         return reject(c, "unsubscribe: no subscription " + s.dump());
+      // What waited for it is no longer wanted (not a loss: the client asked to stop).
+      const std::uint32_t sub = static_cast<std::uint32_t>(v);
+      c.waiting.erase(std::remove_if(c.waiting.begin(), c.waiting.end(), [sub](const Waiting& w) { return w.sub == sub; }),
+                      c.waiting.end());
+      c.stats.waiting = static_cast<int>(c.waiting.size());
     }
     c.stats.subscriptions = static_cast<int>(c.subs.size());
+  } else if (o == "ack") {
+    auto n = j.find("received");
+    if (n == j.end() || !n->is_number_unsigned()) return reject(c, "ack: \"received\" must be a non-negative integer");
+    const std::uint64_t v = n->get<std::uint64_t>();
+    if (v < c.stats.acked || v > c.stats.sent)
+      return reject(c, "ack: received " + std::to_string(v) + " outside [" + std::to_string(c.stats.acked) + ", " +
+                           std::to_string(c.stats.sent) + "] (the last ack, the messages sent)");
+    c.stats.acks = true;
+    c.stats.acked = v;
+    flush(c);
   } else if (o == "advertise") {
     auto chans = j.find("channels");
     if (chans == j.end() || !chans->is_array()) return reject(c, "advertise: no \"channels\" array");
@@ -200,7 +255,7 @@ void Hub::publish(std::uint32_t channel, const std::string& key, const std::stri
   if (ch->latched) latched_[channel][key] = {payload, time_ns};
   for (auto& [id, c] : clients_)
     for (const auto& [sid, cid] : c.subs)
-      if (cid == channel) deliver(c, sid, payload, time_ns);
+      if (cid == channel) deliver(c, sid, key, payload, time_ns);
 }
 
 void Hub::clearLatched(std::uint32_t channel) { latched_.erase(channel); }
@@ -211,6 +266,7 @@ Hub::Stats Hub::stats() const {
   for (const auto& [id, c] : clients_) {
     s.sent += c.stats.sent;
     s.dropped += c.stats.dropped;
+    s.superseded += c.stats.superseded;
     s.rejected += c.stats.rejected;
     s.per_client.push_back(c.stats);
   }

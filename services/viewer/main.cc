@@ -76,7 +76,9 @@ int main(int argc, char** argv) {
   cli.option("--bind", &bind, "ADDR", "address to serve on (keep 127.0.0.1 unless you mean to expose it)");
   cli.option("--port", &port, "PORT", "TCP port; 0 = a free one (printed)");
   cli.option("--web-root", &web_root, "DIR", "the built page (index.html, viewer.js)");
-  cli.option("--max-queue-mb", &max_queue_mb, "MB", "per browser: bytes queued beyond this are dropped (counted)");
+  cli.option("--max-queue-mb", &max_queue_mb, "MB",
+             "per browser: a message larger than this is dropped (counted); a browser with more than the smaller of this "
+             "and 0.25 MB queued gets only the newest message of each channel and hand, the older ones counted as dropped");
   cli.option("--display-triangles", &display_triangles, "N", "the page draws each object decimated to about N triangles (collisions use the full mesh); a page drawing in software a quarter of that");
   cli.option("--poses", &poses, "FILE", "offline: a godhand-bench --poses CSV to play (no DDS)");
   cli.option("--scene", &scene_file, "FILE", "offline: the scene file the bench ran on (default: the lab's)");
@@ -155,6 +157,7 @@ int main(int argc, char** argv) {
   so.port = port;
   so.web_root = web_root;
   so.limits.max_queued_bytes = static_cast<std::size_t>(max_queue_mb * 1024 * 1024);
+  so.limits.send_below_bytes = std::min(so.limits.send_below_bytes, so.limits.max_queued_bytes);
   std::unique_ptr<Server> server;
   try {
     server = std::make_unique<Server>(so);
@@ -378,7 +381,7 @@ int main(int argc, char** argv) {
       last_stats = std::chrono::steady_clock::now();
       const Hub::Stats s = server->stats();
       json clients = json::array();
-      for (const auto& c : s.per_client) clients.push_back({{"id", c.id}, {"sent", c.sent}, {"dropped", c.dropped}, {"rejected", c.rejected}});
+      for (const auto& c : s.per_client) clients.push_back({{"id", c.id}, {"sent", c.sent}, {"dropped", c.dropped}, {"superseded", c.superseded}, {"waiting", c.waiting}, {"rejected", c.rejected}});
       const std::int64_t now = svc::nowNs();
       server->publish(ch_stats, "",
                       json{{"recv_ns", now},
@@ -387,6 +390,7 @@ int main(int argc, char** argv) {
                                          {"rejected", n_bad}}},
                            {"clients", s.clients},
                            {"dropped", s.dropped},
+                           {"superseded", s.superseded},
                            {"inbox_dropped", server->inboxDropped()},
                            {"per_client", clients}}
                           .dump(),

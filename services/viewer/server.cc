@@ -117,11 +117,12 @@ Server::Server(const ServerOptions& o) : impl_(std::make_unique<Impl>()), inbox_
       std::ostringstream j;
       j << "{\"clients\":" << s.clients << ",\"opened\":" << s.opened << ",\"closed\":" << s.closed
         << ",\"refused\":" << s.refused << ",\"published\":" << s.published << ",\"sent\":" << s.sent
-        << ",\"dropped\":" << s.dropped << ",\"rejected\":" << s.rejected << ",\"inbox_dropped\":" << inbox_dropped_.load()
+        << ",\"dropped\":" << s.dropped << ",\"superseded\":" << s.superseded << ",\"rejected\":" << s.rejected << ",\"inbox_dropped\":" << inbox_dropped_.load()
         << ",\"client_published\":" << s.client_published << ",\"per_client\":[";
       for (std::size_t i = 0; i < s.per_client.size(); ++i)
         j << (i ? "," : "") << "{\"id\":" << s.per_client[i].id << ",\"sent\":" << s.per_client[i].sent
-          << ",\"dropped\":" << s.per_client[i].dropped << ",\"rejected\":" << s.per_client[i].rejected << "}";
+          << ",\"dropped\":" << s.per_client[i].dropped << ",\"superseded\":" << s.per_client[i].superseded
+          << ",\"waiting\":" << s.per_client[i].waiting << ",\"rejected\":" << s.per_client[i].rejected << "}";
       j << "]}";
       route = {"application/json", std::make_shared<const std::string>(j.str())};
     }
@@ -152,7 +153,8 @@ Server::Server(const ServerOptions& o) : impl_(std::make_unique<Impl>()), inbox_
 Server::~Server() { stop(); }
 
 void Server::start() {
-  // Copies the Hub's counters for other threads five times a second.
+  // Every 10 ms: the waiting messages of clients whose queue drained go out (Hub::flush); every
+  // 20th tick the Hub's counters are copied for other threads (five times a second).
   impl_->stats_timer = std::make_unique<boost::asio::steady_timer>(impl_->ws.get_io_service());
   auto copy = [this]() {
     const Hub::Stats s = impl_->hub->stats();
@@ -162,14 +164,16 @@ void Server::start() {
   struct Ticker {
     Server* self;
     std::function<void()> copy;
+    int tick = 0;
     void operator()(const boost::system::error_code& e) {
       if (e) return;
-      copy();
-      self->impl_->stats_timer->expires_after(std::chrono::milliseconds(200));
+      self->impl_->hub->flush();
+      if (++tick % 20 == 0) copy();
+      self->impl_->stats_timer->expires_after(std::chrono::milliseconds(10));
       self->impl_->stats_timer->async_wait(*this);
     }
   };
-  impl_->stats_timer->expires_after(std::chrono::milliseconds(200));
+  impl_->stats_timer->expires_after(std::chrono::milliseconds(10));
   impl_->stats_timer->async_wait(Ticker{this, copy});
   thread_ = std::thread([this] {
     try {

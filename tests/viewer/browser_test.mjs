@@ -664,7 +664,10 @@ async function caseSynthetic() {
   const l = launch(['--source', `dtrack://127.0.0.1:${udp}`, '--duration', '15']);
   await page.waitForFunction(() => window.godhand.drawn[0] && !window.godhand.drawn[0].stale && window.godhand.drawn[0].frame > 20, null, { timeout: 60000 });
   const at = async () => page.evaluate(() => { const d = window.godhand.drawn[0]; const s = document.getElementById('hand-0');
-    return { z: d.poses[0][2], tz: d.ghost[0][2], frame: d.frame, text: s ? s.textContent : '' }; });
+    return { z: d.poses[0][2], tz: d.ghost[0][2], frame: d.frame, text: s ? s.textContent : '', states: window.godhand.received.hand_state,
+      sent: window.godhand.synthetic.sent, stale: d.stale, held: d.held }; });
+  // Where the loop page -> viewer -> services -> viewer -> page stood (for a failure's message).
+  const loop = (a) => `drawn frame ${a.frame}, HandStates received ${a.states}, synthetic commands sent ${a.sent}${a.stale ? ', stale' : ''}${a.held ? ', held' : ''} (${a.text.replace(/\s+/g, ' ').slice(0, 160)})`;
   const start = await at();
   check(true, `the synthetic right hand is drawn (palm at z ${start.z.toFixed(3)} m, target z ${start.tz.toFixed(3)} m)`);
   // The page moves its offset at 6 cm/s of its own clock, which a loaded machine starves (seen in
@@ -690,11 +693,13 @@ async function caseSynthetic() {
   };
   await hold('e', (oz) => oz >= 0.036);
   const up = await settle((a) => Math.abs(a.z - a.tz) < 0.005);
-  check(up.tz > start.tz + 0.01 && up.z > start.z + 0.01, `E moved the target and the God hand up (target ${start.tz.toFixed(3)} -> ${up.tz.toFixed(3)}, God ${start.z.toFixed(3)} -> ${up.z.toFixed(3)})`);
+  check(up.tz > start.tz + 0.01 && up.z > start.z + 0.01, `E moved the target and the God hand up (target ${start.tz.toFixed(3)} -> ${up.tz.toFixed(3)}, God ${start.z.toFixed(3)} -> ${up.z.toFixed(3)}; at start ${loop(start)}; now ${loop(up)})`);
   await hold('q', (oz) => oz <= -0.204);
   await sleep(800);  // the God hand's last steps towards the bunny
   const down = await settle(() => true);
-  check(down.tz < down.z - 0.02, `Q pushed the target into the bunny (target z ${down.tz.toFixed(3)} m) and the God hand stopped above it (z ${down.z.toFixed(3)} m)`);
+  // (The God hand must have come down towards the bunny too: a hand that never moved is above it.)
+  check(down.tz < down.z - 0.02 && down.z < up.z - 0.05,
+    `Q pushed the target into the bunny (target z ${down.tz.toFixed(3)} m) and the God hand came down (${up.z.toFixed(3)} -> ${down.z.toFixed(3)} m) and stopped above it; ${loop(down)}`);
   const rec = await page.evaluate(() => window.godhand.synthetic.sent);
   check(rec > 10, `the page sent ${rec} synthetic commands`);
   const penPage = await page.evaluate(() => window.godhand.drawn[0].penetrationMax);

@@ -90,24 +90,116 @@ TEST(ViewerHub, SubscribersGetTheirChannelsAndLatchedStateOnSubscribe) {
   EXPECT_EQ(hub.stats().rejected, 0u);
 }
 
-TEST(ViewerHub, SlowClientIsDroppedForAndCountedOthersUnaffected) {
+TEST(ViewerHub, SlowClientGetsTheNewestOfEachKeyOthersUnaffected) {
   HubLimits lim;
-  lim.max_queued_bytes = 1000;
+  lim.max_queued_bytes = 4000;
+  lim.send_below_bytes = 1000;
   Hub hub(viewerChannels(), lim, "test");
   Recorder slow, fast;
   const int a = hub.open(&slow), b = hub.open(&fast);
   const std::uint32_t ch = hub.channelId("godhand/contact_forces");
   for (int id : {a, b}) hub.onText(id, json{{"op", "subscribe"}, {"subscriptions", {{{"id", 1}, {"channelId", ch}}}}}.dump());
-  slow.queued = 990;  // nearly full: a 100-byte message does not fit
+  slow.queued = 990;  // above the send-below mark once a 100-byte message is added: it waits
   const std::string payload(100, 'x');
-  for (int i = 0; i < 10; ++i) hub.publish(ch, "", payload, static_cast<std::uint64_t>(i));
+  for (int i = 0; i < 10; ++i) hub.publish(ch, "", payload + std::to_string(i), static_cast<std::uint64_t>(i));
   EXPECT_EQ(slow.binaries.size(), 0u);
   EXPECT_EQ(fast.binaries.size(), 10u);
   Hub::Stats s = hub.stats();
-  EXPECT_EQ(s.dropped, 10u);
-  slow.queued = 0;  // it caught up
+  EXPECT_EQ(s.dropped, 9u);  // each newer one superseded the one waiting
+  EXPECT_EQ(s.superseded, 9u);
+  ASSERT_EQ(s.per_client.size(), 2u);
+  EXPECT_EQ(s.per_client[0].waiting, 1);
+  EXPECT_EQ(s.per_client[1].dropped, 0u);
+  hub.flush();  // still full: nothing goes
+  EXPECT_EQ(slow.binaries.size(), 0u);
+  slow.queued = 0;  // it caught up: the newest goes out
+  hub.flush();
+  ASSERT_EQ(slow.binaries.size(), 1u);
+  EXPECT_EQ(slow.binaries[0].substr(13), payload + "9");
+  EXPECT_EQ(hub.stats().per_client[0].waiting, 0);
   hub.publish(ch, "", payload, 11);
-  EXPECT_EQ(slow.binaries.size(), 1u);
+  EXPECT_EQ(slow.binaries.size(), 2u);
+}
+
+// The old rule (send what fits under the cap, drop the rest) starved large messages while small
+// ones still fitted: a slow page drew the targets (small HandTargets) but a God hand frozen at its
+// start (larger HandStates). Now each channel and key waits in line with its newest message.
+TEST(ViewerHub, LargeMessagesAreNotStarvedBySmallOnes) {
+  HubLimits lim;
+  lim.max_queued_bytes = 100000;
+  lim.send_below_bytes = 1000;
+  Hub hub(viewerChannels(), lim, "test");
+  Recorder r;
+  const int id = hub.open(&r);
+  const std::uint32_t state = hub.channelId("godhand/hand_state"), target = hub.channelId("godhand/hand_target");
+  hub.onText(id, json{{"op", "subscribe"}, {"subscriptions", {{{"id", 1}, {"channelId", state}}, {{"id", 2}, {"channelId", target}}}}}.dump());
+  r.queued = 900;  // room for small messages only
+  const std::string big(500, 's'), small(50, 't');
+  std::size_t sent_before = r.binaries.size();
+  for (int i = 0; i < 20; ++i) {
+    hub.publish(state, "0", big + std::to_string(i), static_cast<std::uint64_t>(2 * i));
+    hub.publish(target, "0", small + std::to_string(i), static_cast<std::uint64_t>(2 * i + 1));
+  }
+  // The state waits at the head of the line; the small targets queue behind it, not past it.
+  EXPECT_EQ(r.binaries.size(), sent_before);
+  r.queued = 0;
+  hub.flush();
+  ASSERT_EQ(r.binaries.size(), sent_before + 2);
+  EXPECT_EQ(le32(r.binaries[sent_before], 1), 1u);
+  EXPECT_EQ(r.binaries[sent_before].substr(13), big + "19");
+  EXPECT_EQ(r.binaries[sent_before + 1].substr(13), small + "19");
+  const Hub::Stats s = hub.stats();
+  EXPECT_EQ(s.superseded, 38u);
+  EXPECT_EQ(s.dropped, 38u);
+  // A message that could never be sent (over max_queued_bytes) is dropped and counted at once.
+  hub.publish(state, "1", std::string(200000, 'x'), 99);
+  EXPECT_EQ(hub.stats().dropped, 39u);
+  EXPECT_EQ(hub.stats().per_client[0].waiting, 0);
+  // Unsubscribing discards what waited for that subscription (the client no longer wants it).
+  r.queued = 5000;
+  hub.publish(state, "0", big, 100);
+  EXPECT_EQ(hub.stats().per_client[0].waiting, 1);
+  hub.onText(id, R"({"op":"unsubscribe","subscriptionIds":[1]})");
+  EXPECT_EQ(hub.stats().per_client[0].waiting, 0);
+  r.queued = 0;
+  hub.flush();
+  EXPECT_EQ(r.binaries.size(), sent_before + 2);
+  // A client that closes with messages waiting: they count as dropped (never sent).
+  r.queued = 5000;
+  hub.publish(target, "0", small, 101);
+  hub.close(id);
+  EXPECT_EQ(hub.stats().dropped, 40u);
+}
+
+// A page starved of CPU handles its messages seconds after the kernel took them; a page that
+// acks is held to max_unacked messages in flight, the newest of each key waiting meanwhile.
+TEST(ViewerHub, AckingClientIsHeldToItsUnhandledMessages) {
+  HubLimits lim;
+  lim.max_unacked = 3;
+  Hub hub(viewerChannels(), lim, "test");
+  Recorder r;
+  const int id = hub.open(&r);
+  const std::uint32_t state = hub.channelId("godhand/hand_state");
+  hub.onText(id, json{{"op", "subscribe"}, {"subscriptions", {{{"id", 1}, {"channelId", state}}}}}.dump());
+  // Before its first ack a client is held to the byte rule only (other Foxglove clients never ack).
+  for (int i = 0; i < 5; ++i) hub.publish(state, "0", "{\"v\":" + std::to_string(i) + "}", static_cast<std::uint64_t>(i));
+  ASSERT_EQ(r.binaries.size(), 5u);
+  hub.onText(id, R"({"op":"ack","received":2})");  // 3 in flight: the next waits
+  EXPECT_EQ(hub.stats().rejected, 0u);
+  for (int i = 5; i < 9; ++i) hub.publish(state, "0", "{\"v\":" + std::to_string(i) + "}", static_cast<std::uint64_t>(i));
+  EXPECT_EQ(r.binaries.size(), 5u);
+  EXPECT_EQ(hub.stats().superseded, 3u);
+  hub.onText(id, R"({"op":"ack","received":5})");  // all handled: the newest goes out at once
+  ASSERT_EQ(r.binaries.size(), 6u);
+  EXPECT_EQ(r.binaries[5].substr(13), "{\"v\":8}");
+  // Bad acks: counted and answered, the state unchanged.
+  for (const char* bad : {R"({"op":"ack","received":7})", R"({"op":"ack","received":4})", R"({"op":"ack","received":-1})",
+                          R"({"op":"ack","received":1.5})", R"({"op":"ack"})"})
+    hub.onText(id, bad);
+  EXPECT_EQ(hub.stats().rejected, 5u);
+  EXPECT_EQ(hub.stats().per_client[0].acked, 5u);
+  hub.onText(id, R"({"op":"ack","received":6})");
+  EXPECT_EQ(hub.stats().rejected, 5u);
 }
 
 TEST(ViewerHub, BadClientMessagesAreCountedAndAnsweredNeverFatal) {

@@ -15,6 +15,12 @@ export class Feed {
     this.clientChannels = new Map();  // topic -> client channel id
     this.received = 0;
     this.bytes = 0;
+    // Flow control (godhand's "ack" op, feed.h): the viewer holds this page to a few dozen messages
+    // sent and not yet handled, so a page starved of CPU draws the newest state, not a backlog.
+    this.binaries = 0;
+    this.acked = 0;
+    this.ackAt = 0;
+    setInterval(() => this.ack(true), 100);
     this.connect();
   }
 
@@ -23,12 +29,29 @@ export class Feed {
     this.ws.binaryType = 'arraybuffer';
     this.ws.onopen = () => this.onOpen();
     this.ws.onclose = () => {
+      this.binaries = 0;
+      this.acked = 0;
       this.subs.clear();
       this.clientChannels.clear();
       this.onClose();
       setTimeout(() => this.connect(), 1000);
     };
-    this.ws.onmessage = (ev) => this.handle(ev.data);
+    this.ws.onmessage = (ev) => {
+      if (typeof ev.data !== 'string') this.binaries++;
+      this.handle(ev.data);
+      this.ack(false);
+    };
+  }
+
+  // Tells the viewer how many binary messages were handled: every 8, or after 50 ms (and from a
+  // 100 ms timer, so that the last ones are acked when the feed goes quiet).
+  ack(timer) {
+    if (!this.ws || this.ws.readyState !== WebSocket.OPEN || this.binaries === this.acked) return;
+    const now = performance.now();
+    if (!timer && this.binaries - this.acked < 8 && now - this.ackAt < 50) return;
+    this.ws.send(JSON.stringify({ op: 'ack', received: this.binaries }));
+    this.acked = this.binaries;
+    this.ackAt = now;
   }
 
   handle(data) {
