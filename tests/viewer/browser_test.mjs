@@ -625,6 +625,10 @@ async function caseAbuse() {
   check(s.dropped > 0, `messages for the never-reading client were dropped and counted (${s.dropped})`);
   const pageClient = s.per_client.find((c) => c.dropped === 0 && c.sent > 50);
   check(!!pageClient, `the page's connection lost nothing (${JSON.stringify(s.per_client.map((c) => [c.sent, c.dropped, c.rejected]))})`);
+  // The page shows what its own connection skipped (it finds itself in viewer_stats by session id).
+  const skipped = await page.evaluate(() => [...document.querySelectorAll('#figures tr')].map((r) => r.textContent)
+    .find((t) => t.startsWith('skipped for this page')));
+  check(/^skipped for this page \(it fell behind\)0$/.test(skipped || ''), `the page shows it skipped nothing (${skipped})`);
   check(s.rejected >= 6, `malformed client messages counted (${s.rejected})`);
   check(s.opened >= 24, `connections opened ${s.opened}, closed ${s.closed}`);
   const r = await l.done;

@@ -57,7 +57,9 @@ export class Feed {
   handle(data) {
     if (typeof data === 'string') {
       const m = JSON.parse(data);
-      if (m.op === 'advertise') {
+      if (m.op === 'serverInfo') {
+        this.sessionId = Number(m.sessionId);  // this connection's id in the viewer's stats
+      } else if (m.op === 'advertise') {
         const subscriptions = [];
         for (const ch of m.channels) {
           if ([...this.subs.values()].includes(ch.topic)) continue;

@@ -381,7 +381,12 @@ function updateHud() {
     rows.push(['viewer → drawn', medianP99(latencies)]);
     rows.push(['tracker → drawn', medianP99(e2e)]);
   }
-  if (viewerStats) rows.push(['dropped (slow browsers)', `${viewerStats.dropped}`]);
+  if (viewerStats) {
+    // Older messages a slow browser never got, the newest of each hand sent instead (feed.h).
+    rows.push(['dropped (slow browsers)', `${viewerStats.dropped}`]);
+    const mine = feed && viewerStats.per_client ? viewerStats.per_client.find((c) => c.id === feed.sessionId) : null;
+    if (mine) rows.push(['skipped for this page (it fell behind)', `${mine.superseded}`]);
+  }
   setHtml('figures', rows.map(([k, v]) => `<tr><td>${k}</td><td class="v">${v}</td></tr>`).join(''));
   const hs = [...hands.values()].sort((a, b) => a.index - b.index).map((h) => {
     const s = h.state;
