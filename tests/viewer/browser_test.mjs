@@ -623,12 +623,22 @@ async function caseAbuse() {
   let s = await stats(v.url);
   for (const deadline = Date.now() + 15000; s.dropped === 0 && !replayOver && Date.now() < deadline; s = await stats(v.url)) await sleep(250);
   check(s.dropped > 0, `messages for the never-reading client were dropped and counted (${s.dropped})`);
-  const pageClient = s.per_client.find((c) => c.dropped === 0 && c.sent > 50);
-  check(!!pageClient, `the page's connection lost nothing (${JSON.stringify(s.per_client.map((c) => [c.sent, c.dropped, c.rejected]))})`);
-  // The page shows what its own connection skipped (it finds itself in viewer_stats by session id).
+  // The page's own connection: the other clients' abuse costs it nothing. A page that falls more
+  // than 128 messages behind (busy drawing on a loaded machine: 51 of 717 once under ctest -j2)
+  // skips older messages for the newest of each hand, every one counted as superseded; nothing
+  // else is dropped for it.
+  const pageId = await page.evaluate(() => window.godhand.feed.sessionId);
+  const pageClient = s.per_client.find((c) => c.id === pageId);
+  check(!!pageClient && pageClient.sent > 50 && pageClient.dropped === pageClient.superseded && pageClient.rejected === 0,
+    `the page's connection lost nothing but older messages superseded while it was behind (sent, dropped, superseded: ${
+      JSON.stringify(s.per_client.map((c) => [c.id === pageId ? 'page' : c.id, c.sent, c.dropped, c.superseded]))})`);
+  // The page shows what its own connection skipped (it finds itself in viewer_stats by session id;
+  // viewer_stats comes every 0.5 s, so its figure may be a little older than /stats.json's).
   const skipped = await page.evaluate(() => [...document.querySelectorAll('#figures tr')].map((r) => r.textContent)
     .find((t) => t.startsWith('skipped for this page')));
-  check(/^skipped for this page \(it fell behind\)0$/.test(skipped || ''), `the page shows it skipped nothing (${skipped})`);
+  const shown = /^skipped for this page \(it fell behind\)(\d+)$/.exec(skipped || '');
+  check(!!shown && pageClient && Number(shown[1]) <= pageClient.superseded,
+    `the page shows what it skipped (${skipped}; the viewer counted ${pageClient ? pageClient.superseded : '?'})`);
   check(s.rejected >= 6, `malformed client messages counted (${s.rejected})`);
   check(s.opened >= 24, `connections opened ${s.opened}, closed ${s.closed}`);
   const r = await l.done;
