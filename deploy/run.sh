@@ -94,7 +94,9 @@ PY
     ;;
   compare)
     build build godhand-bench
-    build/bin/godhand-bench --help | grep -q -- "--compare mujoco" ||
+    # (Output captured first: under pipefail, `grep -q` leaving early can SIGPIPE the writer.)
+    help_text=$(build/bin/godhand-bench --help)
+    grep -q -- "--compare mujoco" <<<"$help_text" ||
       { echo "run.sh: godhand-bench has no --compare (MuJoCo not found by cmake: see build/configure.log)" >&2; exit 1; }
     status=0
     for c in "pinch.json stanford-bunny.obj:0.15" "HandSplay-110fps.json fandisk.obj:0.2" "confidence2-49fps.json stanford-bunny.obj:0.25"; do
@@ -135,7 +137,11 @@ PY
     asan_targets=(godhand_core_tests godhand_alloc_test godhand_geometry_tests godhand_scene_tests godhand_physics_tests
       godhand_bridges_tests godhand_pipeline_tests godhand_launch_tests godhand_services_tests godhand_runtime_tests
       godhand_viewer_tests)
-    ninja -C build-asan -t targets all 2>/dev/null | grep -q '^godhand_mujoco_tests:' && asan_targets+=(godhand_mujoco_tests)
+    # The target list is captured before grep reads it: under pipefail, `ninja ... | grep -q` failed
+    # whenever grep left early and ninja got SIGPIPE, so the MuJoCo tests were not built and their
+    # ctest placeholder failed (CI of fe4ae65 on 2026-12-04).
+    ninja_targets=$(ninja -C build-asan -t targets all 2>/dev/null)
+    grep -q '^godhand_mujoco_tests:' <<<"$ninja_targets" && asan_targets+=(godhand_mujoco_tests)
     build build-asan "${asan_targets[@]}"
     # new_delete_type_mismatch=0: libfastrtps 2.9.1 itself (~RTPSReader) trips it (services tests).
     ASAN_OPTIONS=detect_leaks=1:abort_on_error=1:new_delete_type_mismatch=0 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
