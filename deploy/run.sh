@@ -139,7 +139,7 @@ PY
       godhand_viewer_tests)
     # The target list is captured before grep reads it: under pipefail, `ninja ... | grep -q` failed
     # whenever grep left early and ninja got SIGPIPE, so the MuJoCo tests were not built and their
-    # ctest placeholder failed (CI of fe4ae65 on 2026-12-04).
+    # ctest entry for unbuilt tests (`_NOT_BUILT`) failed (CI of fe4ae65 on 2026-12-04).
     ninja_targets=$(ninja -C build-asan -t targets all 2>/dev/null)
     grep -q '^godhand_mujoco_tests:' <<<"$ninja_targets" && asan_targets+=(godhand_mujoco_tests)
     build build-asan "${asan_targets[@]}"
