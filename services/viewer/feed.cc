@@ -107,7 +107,6 @@ void Hub::flush(Client& c) {
     ++done;
   }
   if (done > 0) c.waiting.erase(c.waiting.begin(), c.waiting.begin() + static_cast<std::ptrdiff_t>(done));
-  c.stats.waiting = static_cast<int>(c.waiting.size());
 }
 
 void Hub::flush() {
@@ -131,7 +130,6 @@ void Hub::deliver(Client& c, std::uint32_t sub, const std::string& key, const st
     return;
   }
   c.waiting.push_back(Waiting{sub, key, payload, time_ns});
-  c.stats.waiting = static_cast<int>(c.waiting.size());
 }
 
 namespace {
@@ -189,8 +187,7 @@ void Hub::onText(int client, const std::string& text) {
       const std::uint32_t sub = static_cast<std::uint32_t>(v);
       c.waiting.erase(std::remove_if(c.waiting.begin(), c.waiting.end(), [sub](const Waiting& w) { return w.sub == sub; }),
                       c.waiting.end());
-      c.stats.waiting = static_cast<int>(c.waiting.size());
-    }
+        }
     c.stats.subscriptions = static_cast<int>(c.subs.size());
   } else if (o == "ack") {
     auto n = j.find("received");
@@ -269,6 +266,7 @@ Hub::Stats Hub::stats() const {
     s.superseded += c.stats.superseded;
     s.rejected += c.stats.rejected;
     s.per_client.push_back(c.stats);
+    s.per_client.back().waiting = static_cast<int>(c.waiting.size());  // derived here, not kept twice
   }
   return s;
 }
