@@ -233,6 +233,8 @@ bool HandSolver::freeStart(std::vector<Pose>* X, Vec3* shift) const {
 }
 
 bool HandSolver::start(const HandInput& in) {
+  carry_valid_ = false;
+  have_last_motion_ = false;
   // Start pose: the targets, with undriven or invalid ones taken from the model's rest pose
   // relative to the palm (body 0) target; where that is occupied, the nearest free translation
   // of it (freeStart), from which the normal steps (with CCD) bring the hand to the surface.
@@ -455,6 +457,17 @@ JointErrors HandSolver::clip(double toc_min) {
   return stepper_->lastReport().joint_errors;
 }
 
+double HandSolver::restToTargets(const std::vector<Pose>& X, const HandInput& in) const {
+  double rest = 0.0;
+  for (size_t b = 0; b < X.size(); ++b) {
+    if (in.has_target && !in.has_target[b]) continue;
+    const Pose& T = in.targets[b];
+    if (!isValidPose(T)) continue;
+    rest += (T.p - X[b].p).norm() + geo::boundingRadius(model_.bodies[b].shape) * T.q.normalized().angularDistance(X[b].q);
+  }
+  return rest;
+}
+
 bool HandSolver::reversedRound(bool* have_last) {
   // The round's motion (round_start_ -> the poses now) as one vector over the bodies: each body's
   // translation, and its rotation times its bounding radius (the motion of its far points).
@@ -512,6 +525,8 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
   p.started = started_;
   p.X_old = stepper_->poses();
   if (!p.tracked || !started_) {  // frozen: no step, no contacts, no forces
+    carry_valid_ = false;
+    have_last_motion_ = false;
     contacts_.clear();
     p.X_new = p.X_old;
     d.joint_errors = started_ ? last_errors_ : JointErrors{};
@@ -528,7 +543,9 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
   // next round solves the rest of the way towards the same targets from that pose: a body that
   // met a surface slides along it instead of ending the frame, and the bodies whose paths are
   // free go on.
-  bool have_last_motion = false;  // a round of this frame was taken (reversedRound compares)
+  // reversedRound compares each round with the one before, the last frame's last round included
+  // (a body turning back from one frame to the next is the jitter figure's event).
+  bool& have_last_motion = have_last_motion_;
   for (;;) {
     round_start_ = stepper_->poses();
     si.rotation_trust = rotation_trust_;
@@ -578,8 +595,20 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     // (Measured under the full rotation limits: a rotation trust growing back is no progress.)
     const double free_scale = sr.free_motion_scale, least_scale = sr.motion_scale;
     const double free_asked = sr.asked_free_motion_scale, least_asked = sr.asked_motion_scale;
-    const bool progressing = d.substeps == 1 || free_asked > kRoundProgress * last_free_scale ||
-                             least_asked > kRoundProgress * last_least_scale;
+    // The first round has no round before it in this frame: it goes on, unless the last frame
+    // ended on a clamped round that gained nothing (carry_valid_) and this one neither asks for
+    // less than that one nor brings the hand kRoundGainProgress closer to its targets (a hand
+    // held against an object while its targets sit far inside asks the same every frame, and a
+    // second round there moves nothing; a hand sliding along a table under the clamp gains
+    // centimetres while its most-clamped body asks the same).
+    const bool first = d.substeps == 1;
+    const bool compare_carry = first && carry_valid_;
+    if (compare_carry) {
+      last_free_scale = carry_free_scale_;
+      last_least_scale = carry_least_scale_;
+    }
+    const bool asks_less = free_asked > kRoundProgress * last_free_scale || least_asked > kRoundProgress * last_least_scale;
+    carry_valid_ = false;
     last_free_scale = free_asked;
     last_least_scale = least_asked;
     if (!(toc < 1.0)) {
@@ -589,7 +618,17 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
       // clipped, max_substeps once one was.
       const int rounds = d.clipped ? params_.max_substeps : std::max(params_.max_substeps, params_.max_clamped_rounds);
       reversedRound(&have_last_motion);
-      if (std::min(free_scale, least_scale) < 1.0 && progressing && d.substeps < rounds) continue;
+      const double gain = restToTargets(round_start_, in) - restToTargets(stepper_->poses(), in);
+      if (trace_ >= 2 && compare_carry) emit(params_, "trace: first round gained %.4g m, asks less %d\n", gain, asks_less);
+      const bool progressing = (first && !compare_carry) || asks_less ||
+                               (compare_carry && gain > kRoundGainProgress);
+      const bool clamped = std::min(free_scale, least_scale) < 1.0;
+      if (clamped && progressing && d.substeps < rounds) continue;
+      if (clamped && !progressing) {
+        carry_valid_ = true;
+        carry_free_scale_ = free_asked;
+        carry_least_scale_ = least_asked;
+      }
       break;
     }
     // Two rounds in a row clipped at once: the contacts found at the first did not open a way.

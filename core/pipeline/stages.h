@@ -306,9 +306,12 @@ class HandSolver {
   /// Clips the last motion (METHOD.md §2 step 5): see stages.cc.
   JointErrors clip(double toc_min);
   /// Whether the round just taken (round_start_ -> the stepper's poses) turned back against the
-  /// round before it (*have_last: one was taken this frame; set here); counted, and the rotation
-  /// trust halved (else grown by kRotationTrustGrowth, up to 1).
+  /// round before it (*have_last: one was taken, in this frame or as the last one's last round, since the
+  /// hand started or was last tracked; set here); counted, and the rotation trust halved (else
+  /// grown by kRotationTrustGrowth, up to 1).
   bool reversedRound(bool* have_last);
+  /// m: Σ over the bodies with a valid target of |Δp| + bounding radius × angle to it.
+  double restToTargets(const std::vector<Pose>& X, const HandInput& in) const;
   std::vector<Pose> round_start_;
   std::vector<Vec3> round_motion_, last_round_motion_;  // per body: Δp, ρ θ
   // The rotation trust region (StepInput::rotation_trust), kept across frames. A palm pressed
@@ -368,6 +371,18 @@ class HandSolver {
   static constexpr int kRecloseAttempts = 3;
   /// A clamped round goes on while a clamp scale grows by more than this factor per round.
   static constexpr double kRoundProgress = 1.05;
+  /// m: a first round bringing the hand this much closer to its targets (restToTargets, summed
+  /// over its bodies) is progress even where its most-clamped body asks for no less. Without this
+  /// a hand sliding on a flat table under the clamp fell 8 mm behind (confidence2, left); 1-5 mm
+  /// gave the same lag on the bundled recordings' tables and meshes (README, issue 10).
+  static constexpr double kRoundGainProgress = 5e-3;
+  /// The last frame ended on a clamped round that gained nothing on the round before: its asked
+  /// scales. The next frame's first round goes on only if it gains on them (a hand held against
+  /// an object while its targets sit far inside asks the same every frame; a second round there
+  /// moves nothing). Cleared by a start, a loss and a frame that ended otherwise.
+  bool carry_valid_ = false;
+  bool have_last_motion_ = false;  ///< last_round_motion_ holds a round (reversedRound compares)
+  double carry_free_scale_ = 1.0, carry_least_scale_ = 1.0;
   std::vector<Pose> X_start_;
   HandProposal proposal_;
   SolverCounters counters_;

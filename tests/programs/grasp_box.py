@@ -57,7 +57,10 @@ check(j["penetration_max_m"] <= j["margin_m"], f"penetration {j['penetration_max
 check(j["joint_gap_max_m"] <= 1e-6, f"joint gap {j['joint_gap_max_m']:.3g} m <= 1e-6 m")
 check(j["solver_failures"] == 0, "no solver failure")
 check(b["simulated"], "the box is simulated")
-check(b["max_displacement_m"] > 0.01, "the hands reached the box and pushed it (> 1 cm)")
+# A box standing alone does not move at all; squeezed by two frictionless hands it is pushed, and
+# how far depends on which side slips first: 12 mm at commit 64f38f5, 5-54 mm under small changes
+# of the round rules on 2026-12-04, 6 mm with the rules adopted then. So: moved, by more than 2 mm.
+check(b["max_displacement_m"] > 0.002, f"the hands reached the box and pushed it ({b['max_displacement_m'] * 1e3:.1f} mm > 2 mm)")
 # Frictionless curling fingers squirt the box out along -Y (~10 cm; peak 0.84 m/s before the
 # 2026-12-02 round-progress change, 1.24 m/s after it, when the hands stopped freezing on it and
 # hold it harder). A launch is faster than that: the squeeze bug this guards against flew off at
