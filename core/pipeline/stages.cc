@@ -457,15 +457,19 @@ JointErrors HandSolver::clip(double toc_min) {
   return stepper_->lastReport().joint_errors;
 }
 
-double HandSolver::restToTargets(const std::vector<Pose>& X, const HandInput& in) const {
-  double rest = 0.0;
-  for (size_t b = 0; b < X.size(); ++b) {
+double HandSolver::largestGain(const std::vector<Pose>& X0, const std::vector<Pose>& X1, const HandInput& in) const {
+  // Per body: |Δp| + bounding radius × angle to its target, before minus after.
+  double best = 0.0;
+  for (size_t b = 0; b < X0.size(); ++b) {
     if (in.has_target && !in.has_target[b]) continue;
     const Pose& T = in.targets[b];
     if (!isValidPose(T)) continue;
-    rest += (T.p - X[b].p).norm() + geo::boundingRadius(model_.bodies[b].shape) * T.q.normalized().angularDistance(X[b].q);
+    const Quat q = T.q.normalized();
+    const double r = geo::boundingRadius(model_.bodies[b].shape);
+    const double g = (T.p - X0[b].p).norm() + r * q.angularDistance(X0[b].q) - (T.p - X1[b].p).norm() - r * q.angularDistance(X1[b].q);
+    best = std::max(best, g);
   }
-  return rest;
+  return best;
 }
 
 bool HandSolver::reversedRound(bool* have_last) {
@@ -597,10 +601,10 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     const double free_asked = sr.asked_free_motion_scale, least_asked = sr.asked_motion_scale;
     // The first round has no round before it in this frame: it goes on, unless the last frame
     // ended on a clamped round that gained nothing (carry_valid_) and this one neither asks for
-    // less than that one nor brings the hand kRoundGainProgress closer to its targets (a hand
+    // less than that one nor brings any body kRoundGainProgress closer to its target (a hand
     // held against an object while its targets sit far inside asks the same every frame, and a
     // second round there moves nothing; a hand sliding along a table under the clamp gains
-    // centimetres while its most-clamped body asks the same).
+    // millimetres a body while its most-clamped body asks the same).
     const bool first = d.substeps == 1;
     const bool compare_carry = first && carry_valid_;
     if (compare_carry) {
@@ -618,7 +622,7 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
       // clipped, max_substeps once one was.
       const int rounds = d.clipped ? params_.max_substeps : std::max(params_.max_substeps, params_.max_clamped_rounds);
       reversedRound(&have_last_motion);
-      const double gain = restToTargets(round_start_, in) - restToTargets(stepper_->poses(), in);
+      const double gain = compare_carry ? largestGain(round_start_, stepper_->poses(), in) : 0.0;
       if (trace_ >= 2 && compare_carry) emit(params_, "trace: first round gained %.4g m, asks less %d\n", gain, asks_less);
       const bool progressing = (first && !compare_carry) || asks_less ||
                                (compare_carry && gain > kRoundGainProgress);

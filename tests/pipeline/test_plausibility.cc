@@ -270,6 +270,52 @@ TEST(Plausibility, LiftsOffWhileRotatingWithinOneFrame) {
   EXPECT_LT(X.q.angularDistance(target.q), 1e-3);
 }
 
+// A box pressed onto a plane by a target 5 cm under it: the motion clamp (3 cm a frame) shortens
+// every round. Held still, a second round gains nothing, so after the first frames each frame
+// takes one round (HandSolver: a frame's first round goes on only where it gains on the last
+// frame's stalled round). Sliding (the target moves 1 cm a frame along the plane), the rounds go
+// on while they bring the box closer. The frictionless ideal follows the target's x exactly; with
+// one round a frame the clamp (it scales the whole asked motion, lift and slide alike) has a fixed
+// point: lag before the step Δ with 1 cm = 3 cm · Δ / √(Δ² + (5 cm)²), Δ = 1.77 cm, 0.77 cm after
+// it. The box never goes through the plane.
+TEST(Plausibility, AHeldBoxTakesOneRoundAFrameAndStillSlidesUnderTheClamp) {
+  Scene scene = sceneOf({meshObject("plate", boxMesh(Vec3(1.0, 1.0, 0.05)), at(0, 0, -0.05))});
+  const HandModel m = bodyModel("box { half_extents { x: 0.03 y: 0.02 z: 0.01 } }");
+  Pipeline pipe(scene, {&m}, params(1.0 / 100));
+  const Shape& s = m.bodies[0].shape;
+  double low = 1e9;
+  int one_round = 0, held = 0;
+  Pose target = at(0, 0, 0.01);  // resting on the plane: the start is free
+  for (int k = 0; k < 5; ++k) {
+    const std::vector<HandInput> in{{true, &target, nullptr}};
+    pipe.step(in);
+  }
+  target = at(0, 0, -0.04);  // 5 cm under the plane, held still
+  for (int k = 0; k < 40; ++k) {
+    const std::vector<HandInput> in{{true, &target, nullptr}};
+    pipe.step(in);
+    low = std::min(low, lowestZ(s, pipe.poses(0)[0]));
+    if (k >= 5) {
+      ++held;
+      one_round += pipe.result(0).diag.substeps == 1;
+    }
+  }
+  double lag = 0.0;
+  for (int k = 1; k <= 60; ++k) {  // slides 1 cm a frame along +x, still 5 cm under
+    target = at(0.01 * k, 0, -0.04);
+    const std::vector<HandInput> in{{true, &target, nullptr}};
+    pipe.step(in);
+    low = std::min(low, lowestZ(s, pipe.poses(0)[0]));
+    if (k > 20) lag = std::max(lag, target.p.x() - pipe.poses(0)[0].p.x());
+  }
+  std::printf("[figure] box held on a plane by a target 5 cm under it: %d of %d frames one round; sliding 1 cm a "
+              "frame: x lag max %.3g m (one round a frame: 7.7 mm); lowest corner %.3g m\n",
+              one_round, held, lag, low);
+  EXPECT_GE(low, -1e-9) << "a corner went through the plane";
+  EXPECT_EQ(one_round, held) << "held still, a frame took a second round that gained nothing";
+  EXPECT_LT(lag, 0.005) << "the sliding box trailed its target as if it took one round a frame (7.7 mm)";
+}
+
 // The whole 16-body hand: its index fingertip's target is pushed up into a crease (two plates
 // meeting in a roof above it: the tip touches both faces) while the hand's other targets move
 // freely: those bodies follow their targets as the free twin does (within 1 mm; the finger
