@@ -4,7 +4,7 @@
 //
 // Contacts (paper Eq. 24 rows, thinned as METHOD.md §3 asks): for each object whose box is within
 // `reach` of a God object, exact closest-point queries on the BVH for the whole shape and for
-// its parts (a capsule's two end spheres, a box's eight corners) give up to 9 candidate
+// its parts (a capsule's two end spheres, a box's eight corners and twelve edge midpoints) give up to 21 candidate
 // triangles, independent of the mesh's density (a dense mesh has thousands of triangles within
 // a centimetre of a phalanx; taking all of them cost milliseconds and gave redundant rows). Per
 // (body, object) pair at most K are kept, greedily in order of distance, skipping one whose
