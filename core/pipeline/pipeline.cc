@@ -113,7 +113,7 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
   c.scene_pushouts = scene_stage_->counters().scene_pushouts;
   c.pushout_unresolved = scene_stage_->counters().pushout_unresolved;
   c.pushout_restored = scene_stage_->counters().pushout_restored;
-  c.lifted_starts = c.solver_failures = c.inexact_solves = c.rounds_shortened = c.rounds_kept = c.reacquisitions = c.reversed_rounds = 0;
+  c.lifted_starts = c.solver_failures = c.inexact_solves = c.rounds_shortened = c.rounds_kept = c.reacquisitions = c.reversed_rounds = c.hit_resolves = c.resolves_undone = 0;
   c.sweeps = c.sweep_iterations = c.sweeps_capped = c.per_body_clips = c.uniform_clips = c.sweeps_certified = c.held_rounds = 0;
   for (const auto& s : solvers_) {
     c.per_body_clips += s->counters().per_body_clips;
@@ -130,6 +130,8 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
     c.rounds_kept += s->counters().rounds_kept;
     c.reacquisitions += s->counters().reacquisitions;
     c.reversed_rounds += s->counters().reversed_rounds;
+    c.hit_resolves += s->counters().hit_resolves;
+    c.resolves_undone += s->counters().resolves_undone;
   }
   report_.times.total_us = usSince(t_frame);
   return report_;

@@ -76,6 +76,7 @@ struct PipelineCounters {
   std::uint64_t rounds_shortened = 0, rounds_kept = 0;  ///< the solvers' (SolverCounters)
   std::uint64_t reacquisitions = 0;                    ///< the solvers' (SolverCounters)
   std::uint64_t reversed_rounds = 0;                   ///< the solvers' (SolverCounters)
+  std::uint64_t hit_resolves = 0, resolves_undone = 0;  ///< the solvers' (SolverCounters)
 };
 
 class Pipeline {

@@ -1,5 +1,7 @@
 #include "pipeline/stages.h"
 
+#include "pipeline/run_metrics.h"
+
 #include <algorithm>
 #include <cstdarg>
 #include <chrono>
@@ -77,6 +79,7 @@ void PipelineParams::validate() const {
   require(std::isfinite(stuck_rotation) && stuck_rotation >= 0.0, "stuck_rotation must be >= 0 (0 = off)");
   require(max_substeps >= 1 && max_substeps <= 64, "max_substeps must be in [1, 64]");
   require(max_clamped_rounds >= 1 && max_clamped_rounds <= 64, "max_clamped_rounds must be in [1, 64]");
+  require(hit_resolves >= 0 && hit_resolves <= 16, "hit_resolves must be in [0, 16]");
   require(reacquire_after >= 0.0, "reacquire_after must be >= 0 (s; +inf = never)");
   require(threads >= 1 && threads <= 64, "threads must be in [1, 64]");
   require(body_threads >= 1 && body_threads <= 64, "body_threads must be in [1, 64]");
@@ -110,6 +113,7 @@ HandSolver::HandSolver(const Scene& scene, const HandModel& model, const Pipelin
   const int per = static_cast<int>(model.bodies.size()) * params_.contacts.per_pair * 4;
   blocked_.assign(model.bodies.size(), 0);
   rotation_cap_.assign(model.bodies.size(), std::numeric_limits<double>::infinity());
+  round_caps_ = rotation_cap_;
   body_toc_.assign(model.bodies.size(), 1.0);
   reclose_toc_.assign(model.bodies.size(), 1.0);
   clear_reach_.assign(model.bodies.size(), -1.0);
@@ -340,9 +344,9 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
     // turns into the face beyond it however small the turn its rows allow, down to the ridge's
     // dihedral angle; rows at the ridge point cannot see that turn).
     const double inf = std::numeric_limits<double>::infinity();
-    rotation_cap_[b] = !stuck ? inf
-                       : rotation_cap_[b] < inf ? std::max(kMinRotationCap, 0.25 * rotation_cap_[b])
-                                                : params_.stuck_rotation;
+    // (From the cap the round started with: the round's re-solves do not compound it.)
+    const double cap0 = round_caps_[b];
+    rotation_cap_[b] = !stuck ? inf : cap0 < inf ? std::max(kMinRotationCap, 0.25 * cap0) : params_.stuck_rotation;
     body_toc_[b] = s.toc;
     if ((trace_ >= 2 && (s.toc < 1.0 || collision_.penetration(model_.bodies[b].shape, X1[b]) >
                                                collision_.penetration(model_.bodies[b].shape, X0[b]) + 1e-7)) ||
@@ -364,6 +368,52 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
     }
   }
   return toc;
+}
+
+bool HandSolver::addHitContacts() {
+  const std::vector<Pose>& X0 = stepper_->previousPoses();
+  const std::vector<Pose>& X1 = stepper_->poses();
+  const size_t n = model_.bodies.size();
+  int busy = 0;
+  for (size_t b = 0; b < n; ++b) busy += body_sweeps_[b].hit && !body_sweeps_[b].started_inside ? 1 : 0;
+  if (busy == 0) return false;
+  hit_contacts_.resize(n);
+  forEachBody([&](size_t b, CollisionWorld& world) {
+    std::vector<Contact>& out = hit_contacts_[b];
+    out.clear();
+    const geo::SweepResult& s = body_sweeps_[b];
+    if (!s.hit || s.started_inside) return;
+    const Pose X_hit = poseUpdate(X0[b], poseDifference(X1[b], X0[b]), std::max(0.0, s.toc));
+    world.contacts(model_.bodies[b].shape, X_hit, static_cast<int>(b), params_.contact_reach, params_.contacts, &out, nullptr);
+    // Each contact point moves rigidly with its body back to the round's start; the distance
+    // there along the same (world-fixed) normal.
+    const Pose back = X0[b] * X_hit.inverse();
+    for (Contact& c : out) {
+      const Vec3 p0 = back * c.p_W;
+      c.distance += c.n_W.dot(p0 - c.p_W);
+      c.p_W = p0;
+    }
+  }, busy);
+  bool added = false;
+  for (size_t b = 0; b < n; ++b)
+    for (const Contact& h : hit_contacts_[b]) {
+      bool found = false;
+      for (Contact& c : contacts_) {
+        if (c.key != h.key || c.body != h.body || c.object != h.object) continue;
+        found = true;
+        if (std::abs(c.distance - h.distance) > kHitContactChange || (c.n_W - h.n_W).norm() > kHitContactChange / 0.01 ||
+            (c.p_W - h.p_W).norm() > kHitContactChange) {
+          c = h;
+          added = true;
+        }
+        break;
+      }
+      if (!found) {
+        contacts_.push_back(h);
+        added = true;
+      }
+    }
+  return added;
 }
 
 // Clipping a round's motion. First each body to its own TOC (the bodies whose paths are free take
@@ -457,11 +507,20 @@ JointErrors HandSolver::clip(double toc_min) {
   return stepper_->lastReport().joint_errors;
 }
 
-double HandSolver::largestGain(const std::vector<Pose>& X0, const std::vector<Pose>& X1, const HandInput& in) const {
+double HandSolver::largestMotion(const std::vector<Pose>& X0, const std::vector<Pose>& X1) const {
+  double most = 0.0;
+  for (size_t b = 0; b < X0.size(); ++b)
+    most = std::max(most, askedMotion(X0[b], X1[b], geo::boundingRadius(model_.bodies[b].shape)));
+  return most;
+}
+
+double HandSolver::largestGain(const std::vector<Pose>& X0, const std::vector<Pose>& X1, const HandInput& in,
+                               const std::vector<double>* toc) const {
   // Per body: |Δp| + bounding radius × angle to its target, before minus after.
   double best = 0.0;
   for (size_t b = 0; b < X0.size(); ++b) {
     if (in.has_target && !in.has_target[b]) continue;
+    if (toc && (*toc)[b] < 1.0) continue;
     const Pose& T = in.targets[b];
     if (!isValidPose(T)) continue;
     const Quat q = T.q.normalized();
@@ -552,45 +611,102 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
   bool& have_last_motion = have_last_motion_;
   for (;;) {
     round_start_ = stepper_->poses();
+    round_caps_ = rotation_cap_;
     si.rotation_trust = rotation_trust_;
     Clock::time_point t0 = Clock::now();
     generateContacts(in);
     d.times.contacts_us += usSince(t0);
-    si.contacts = contacts_.data();
-    si.num_contacts = static_cast<int>(contacts_.size());
-    si.rotation_cap = nullptr;
-    for (double cap : rotation_cap_)
-      if (cap < std::numeric_limits<double>::infinity()) si.rotation_cap = rotation_cap_.data();
-    const StepReport& sr = stepper_->step(si);
+    // The Gauss step of this round from round_start_ against contacts_, and its figures; then
+    // the sweep of its motion.
+    auto solveAndSweep = [&]() -> const StepReport& {
+      si.contacts = contacts_.data();
+      si.num_contacts = static_cast<int>(contacts_.size());
+      si.rotation_cap = nullptr;
+      for (double cap : rotation_cap_)
+        if (cap < std::numeric_limits<double>::infinity()) si.rotation_cap = rotation_cap_.data();
+      const StepReport& sr = stepper_->step(si);
+      if (trace_ >= 1)
+        emit(params_, "trace: frame %llu round %d status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu scale %.3g trust %.3g\n",
+                     static_cast<unsigned long long>(frame), d.substeps + 1, static_cast<int>(sr.solve.status),
+                     sr.solve.kkt_residual, sr.projection_iterations, sr.joint_errors.gap, sr.rows, sr.flags,
+                     contacts_.size(), sr.motion_scale, si.rotation_trust);
+      d.times.assembly_us += sr.times.coupling_us + sr.times.assembly_us;
+      d.times.solve_us += sr.times.solve_us;
+      d.times.integrate_us += sr.times.integrate_us + sr.times.project_us;
+      d.contacts = std::max(d.contacts, static_cast<int>(contacts_.size()));
+      d.kkt = std::max(d.kkt, sr.solve.kkt_residual);
+      if (sr.solve.status != SolveStatus::Converged) d.status = sr.solve.status;
+      d.flags |= sr.flags;
+      d.joint_errors = sr.joint_errors;
+      if (sr.flags & kFlagSolverFailed) ++counters_.solver_failures;
+      if (sr.flags & kFlagSolverInexact) ++counters_.inexact_solves;
+      if (sr.shortened > 0) ++counters_.rounds_shortened;
+      if (sr.shortened > 0 && (sr.flags & kFlagStateKept)) ++counters_.rounds_kept;
+      // The multipliers of the last solve are the forces of this frame.
+      p.loads.clear();
+      for (size_t i = 0; i < contacts_.size(); ++i) {
+        const Contact& c = contacts_[i];
+        const double lambda = stepper_->contactLambda(static_cast<int>(i));
+        if (c.object < 0 || !std::isfinite(lambda) || !(lambda > 0.0)) continue;
+        p.loads.push_back(ContactLoad{c.body, c.object, c.p_W, c.n_W, lambda});
+      }
+      return sr;
+    };
+    const StepReport* srp = &solveAndSweep();
     ++d.substeps;
-    if (trace_ >= 1)
-      emit(params_, "trace: frame %llu round %d status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu scale %.3g trust %.3g\n",
-                   static_cast<unsigned long long>(frame), d.substeps, static_cast<int>(sr.solve.status),
-                   sr.solve.kkt_residual, sr.projection_iterations, sr.joint_errors.gap, sr.rows, sr.flags,
-                   contacts_.size(), sr.motion_scale, si.rotation_trust);
-    d.times.assembly_us += sr.times.coupling_us + sr.times.assembly_us;
-    d.times.solve_us += sr.times.solve_us;
-    d.times.integrate_us += sr.times.integrate_us + sr.times.project_us;
-    d.contacts = std::max(d.contacts, static_cast<int>(contacts_.size()));
-    d.kkt = std::max(d.kkt, sr.solve.kkt_residual);
-    if (sr.solve.status != SolveStatus::Converged) d.status = sr.solve.status;
-    d.flags |= sr.flags;
-    d.joint_errors = sr.joint_errors;
-    if (sr.flags & kFlagSolverFailed) ++counters_.solver_failures;
-    if (sr.flags & kFlagSolverInexact) ++counters_.inexact_solves;
-    if (sr.shortened > 0) ++counters_.rounds_shortened;
-    if (sr.shortened > 0 && (sr.flags & kFlagStateKept)) ++counters_.rounds_kept;
-    // The multipliers of the last round are the forces of this frame.
-    p.loads.clear();
-    for (size_t i = 0; i < contacts_.size(); ++i) {
-      const Contact& c = contacts_[i];
-      const double lambda = stepper_->contactLambda(static_cast<int>(i));
-      if (c.object < 0 || !std::isfinite(lambda) || !(lambda > 0.0)) continue;
-      p.loads.push_back(ContactLoad{c.body, c.object, c.p_W, c.n_W, lambda});
-    }
     t0 = Clock::now();
-    const double toc = sweepLastMotion(&inside);
+    double toc = sweepLastMotion(&inside);
     d.times.ccd_us += usSince(t0);
+    // A hit: the hit bodies' contacts at their TOC poses join the round's (moved back to the
+    // round's start with their bodies) and the round is solved again from its start, so that a
+    // body that met a face slides along it within this round instead of the hand being clipped,
+    // re-closed and solved again from there (Redon et al.: solve, sweep, new contacts, re-solve).
+    // At most hit_resolves times, and only while the hit brought a contact the rows lacked;
+    // a round still hit is clipped as before.
+    // A re-solve that leaves every body where it was (rows linearised at a sharp feature can hold
+    // a hand the clip would let slide: a palm on the tip of a spike, whose faces' rows fence it in)
+    // is undone where the first motion brought some unhit body kRoundGainProgress closer to its
+    // target: that motion is clipped instead.
+    bool resolved = false;
+    for (int again = 0; toc < 1.0 && !inside && again < params_.hit_resolves; ++again) {
+      if (again == 0) {
+        first_.X1 = stepper_->poses();
+        first_.report = *srp;
+        first_.loads = p.loads;
+        first_.sweeps = body_sweeps_;
+        first_.body_toc = body_toc_;
+        first_.blocked = blocked_;
+        first_.caps = rotation_cap_;
+        first_.toc = toc;
+      }
+      t0 = Clock::now();
+      const bool added = addHitContacts();
+      d.times.contacts_us += usSince(t0);
+      if (!added) break;
+      stepper_->adoptPoses(round_start_);
+      srp = &solveAndSweep();
+      ++counters_.hit_resolves;
+      resolved = true;
+      t0 = Clock::now();
+      toc = sweepLastMotion(&inside);
+      d.times.ccd_us += usSince(t0);
+    }
+    StepReport sr = *srp;
+    // (Held: no body moved more than the frozen figure allows a frame, MetricThresholds.)
+    constexpr double kHeld = MetricThresholds::kGodStill / MetricThresholds::kWindow;
+    if (resolved && !(toc < 1.0) && !inside && largestMotion(round_start_, stepper_->poses()) < kHeld &&
+        largestGain(round_start_, first_.X1, in, &first_.body_toc) >= kRoundGainProgress) {
+      ++counters_.resolves_undone;
+      stepper_->setMotion(round_start_, first_.X1);
+      sr = first_.report;
+      p.loads = first_.loads;
+      d.joint_errors = sr.joint_errors;
+      body_sweeps_ = first_.sweeps;
+      body_toc_ = first_.body_toc;
+      blocked_ = first_.blocked;
+      rotation_cap_ = first_.caps;
+      toc = first_.toc;
+    }
     // The clamp's scales: the free bodies' shared one, and the least of all (a body near a contact
     // clamped on its own, e.g. a thumb flipping next to a table). The rest of the motion shrinks
     // while either grows from round to round; 5 % is enough to tell growth from a hand whose
@@ -622,7 +738,7 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
       // clipped, max_substeps once one was.
       const int rounds = d.clipped ? params_.max_substeps : std::max(params_.max_substeps, params_.max_clamped_rounds);
       reversedRound(&have_last_motion);
-      const double gain = compare_carry ? largestGain(round_start_, stepper_->poses(), in) : 0.0;
+      const double gain = compare_carry ? largestGain(round_start_, stepper_->poses(), in, nullptr) : 0.0;
       if (trace_ >= 2 && compare_carry) emit(params_, "trace: first round gained %.4g m, asks less %d\n", gain, asks_less);
       const bool progressing = (first && !compare_carry) || asks_less ||
                                (compare_carry && gain > kRoundGainProgress);

@@ -88,6 +88,10 @@ struct PipelineParams {
   /// its free twin ended the frame 7-12 mm apart in free space). Rounds after a clip stay bounded by
   /// max_substeps. The larger of the two applies.
   int max_clamped_rounds = 5;
+  /// Within a round whose sweep hit: the hit bodies' contacts at their TOC poses join the round's
+  /// and the round is solved again from its start, at most this many times (while the hit brings
+  /// a contact the rows lacked), before the round is clipped (0: clip at once).
+  int hit_resolves = 1;
   /// rad (0 = off): a body whose last sweep hit at once (TOC < 1e-3, from outside) may turn at
   /// most this much in its next solved step (StepInput::rotation_cap): resting on a surface, a
   /// larger turn about its origin swings its contact point into the surface and the whole round
@@ -241,6 +245,11 @@ struct SolverCounters {
   /// Rounds that turned the hand back against the round before them (the rows' linearisation
   /// overshot on a curved surface): each halved the rotation trust (HandSolver::reversedRound).
   std::uint64_t reversed_rounds = 0;
+  /// Rounds solved again from their start with the contacts their sweep hit (hit_resolves).
+  std::uint64_t hit_resolves = 0;
+  /// Of the rounds re-solved, those whose re-solve held every body while the first motion had
+  /// brought an unhit body closer: that motion was clipped instead.
+  std::uint64_t resolves_undone = 0;
 };
 struct ResolverCounters {
   std::uint64_t frames = 0, clipped_steps = 0, started_inside = 0, forces_clamped = 0, held = 0;
@@ -303,6 +312,10 @@ class HandSolver {
   /// TOC_min of the stepper's last motion (previous -> current poses) against the scene; each
   /// body's own TOC in body_toc_.
   double sweepLastMotion(bool* started_inside);
+  /// The contacts of every body the last sweep hit (from outside), at its own TOC pose, moved
+  /// back with the body to the round's start (stepper's previous poses) and merged into contacts_
+  /// (replacing those of the same key). False when they brought nothing the rows lacked.
+  bool addHitContacts();
   /// Clips the last motion (METHOD.md §2 step 5): see stages.cc.
   JointErrors clip(double toc_min);
   /// Whether the round just taken (round_start_ -> the stepper's poses) turned back against the
@@ -312,7 +325,22 @@ class HandSolver {
   bool reversedRound(bool* have_last);
   /// m: the most any body with a valid target came closer to it from X0 to X1, counting |Δp| +
   /// bounding radius × angle (0 when none did).
-  double largestGain(const std::vector<Pose>& X0, const std::vector<Pose>& X1, const HandInput& in) const;
+  /// m: the most any body moved from X0 to X1 (|Δp| + bounding radius × angle).
+  double largestMotion(const std::vector<Pose>& X0, const std::vector<Pose>& X1) const;
+  /// toc (per body, or nullptr): only the bodies whose TOC is 1 (unhit) count.
+  double largestGain(const std::vector<Pose>& X0, const std::vector<Pose>& X1, const HandInput& in,
+                     const std::vector<double>* toc) const;
+  /// A round's first solved motion and its sweep, while its re-solves are tried (step()).
+  struct FirstAttempt {
+    std::vector<Pose> X1;
+    StepReport report;
+    std::vector<ContactLoad> loads;
+    std::vector<geo::SweepResult> sweeps;
+    std::vector<double> body_toc, caps;
+    std::vector<unsigned char> blocked;
+    double toc = 1.0;
+  };
+  FirstAttempt first_;
   std::vector<Pose> round_start_;
   std::vector<Vec3> round_motion_, last_round_motion_;  // per body: Δp, ρ θ
   // The rotation trust region (StepInput::rotation_trust), kept across frames. A palm pressed
@@ -346,11 +374,13 @@ class HandSolver {
   JointErrors last_errors_;
   std::vector<Contact> contacts_;
   std::vector<Contact> clip_contacts_;  // scratch: contacts at a clipped pose
+  std::vector<std::vector<Contact>> hit_contacts_;  // per body: at its TOC pose (addHitContacts)
   std::vector<unsigned char> blocked_;  // per body: its last sweep hit (gets shell contacts)
   // Per body: stuck_rotation where its last sweep hit at once (TOC < 1e-3, from outside), a
   // quarter of its last cap where it hit at once under one (down to kMinRotationCap), else
   // +inf (StepInput::rotation_cap).
   std::vector<double> rotation_cap_;
+  std::vector<double> round_caps_;  // rotation_cap_ as the round started (its sweeps update from these)
   static constexpr double kMinRotationCap = 1e-4;  ///< rad
   std::vector<double> body_toc_;        // per body: TOC of the last sweep
   std::vector<Pose> X0_, X1_, X_clip_;
@@ -370,6 +400,9 @@ class HandSolver {
   /// The room a sweep could still stop a body in: its largest stop distance and tolerance.
   double sweepRoom() const { return params_.sweep.stop_distance + params_.sweep.tolerance; }
   static constexpr int kRecloseAttempts = 3;
+  /// m: a hit's contact that differs from the round's one of the same key by less (distance,
+  /// point; its normal by this over 1 cm) brings nothing new.
+  static constexpr double kHitContactChange = 1e-6;
   /// A clamped round goes on while a clamp scale grows by more than this factor per round.
   static constexpr double kRoundProgress = 1.05;
   /// m: a first round bringing any body this much closer to its target (largestGain) is progress

@@ -100,6 +100,8 @@ const char* kUsage =
     "                        results are the same for every N\n"
     "  --clamped-rounds N    rounds a frame may take while only the motion clamp shortened them (none\n"
     "                        clipped), each gaining on the last (default 5; the larger of this and --substeps)\n"
+    "  --hit-resolves N      a round whose sweep hit is solved again from its start with the hit bodies'\n"
+    "                        contacts at their TOC, at most N times, before it is clipped (default %HIT_RESOLVES%; 0: clip)\n"
     "  --reacquire-after S   a hand tracked again after a loss of at least S seconds starts again at its\n"
     "                        targets (or the nearest free pose), the jump swept from where it was lost;\n"
     "                        shorter losses go on from there (default 0.1; inf = never)\n"
@@ -138,6 +140,7 @@ std::string usageText() {
   };
   std::string u = kUsage;
   const std::pair<const char*, std::string> fields[] = {{"%SUBSTEPS%", std::to_string(d.max_substeps)},
+                                                        {"%HIT_RESOLVES%", std::to_string(d.hit_resolves)},
                                                         {"%CONTACT_ROT%", num(d.step.max_step_rotation_in_contact)},
                                                         {"%MAX_ROT%", num(d.step.max_step_rotation)},
                                                         {"%MAX_TRANS%", num(d.step.max_step_translation)}};
@@ -157,6 +160,7 @@ struct Args {
   int physics_hz = 240;
   int substeps = PipelineParams{}.max_substeps;
   int clamped_rounds = PipelineParams{}.max_clamped_rounds;
+  int hit_resolves = PipelineParams{}.hit_resolves;
   int threads = 0;  // 0: min(hands, cores)
   std::string compare;  // "" or "mujoco"
   double mj_timestep = 0.002, mj_weld = 0.02, mj_contact = 0.02;
@@ -247,6 +251,7 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--quiet") a.quiet = true;
     else if (f == "--substeps") a.substeps = static_cast<int>(parseCount(f, value(), 1, 64));
     else if (f == "--clamped-rounds") a.clamped_rounds = static_cast<int>(parseCount(f, value(), 1, 64));
+    else if (f == "--hit-resolves") a.hit_resolves = static_cast<int>(parseCount(f, value(), 0, 16));
     else if (f == "--threads") a.threads = static_cast<int>(parseCount(f, value(), 1, 64));
     else if (f == "--compare") {
       a.compare = value();
@@ -390,6 +395,7 @@ int main(int argc, char** argv) {
   params.simulate = args.physics;
   params.max_substeps = args.substeps;
   params.max_clamped_rounds = args.clamped_rounds;
+  params.hit_resolves = args.hit_resolves;
   params.stuck_rotation = args.stuck_rotation;
   params.reacquire_after = args.reacquire_after;
   params.step.max_step_rotation_in_contact = args.contact_rotation;
@@ -610,14 +616,16 @@ int main(int argc, char** argv) {
               "%llu stopped at the iteration bound; "
               "clipped rounds: %llu with each body at its own TOC, %llu with the hand at TOC_min, %llu left where they started; "
               "rounds whose projection opened the joints: %llu shortened, %llu of them kept the last state; "
-              "rounds that went back against the round before (their clamp halved): %llu\n",
+              "rounds that went back against the round before (their clamp halved): %llu; "
+              "rounds solved again with the contacts their sweep hit: %llu (%llu of them held the hand and were clipped instead)\n",
               static_cast<unsigned long long>(c.sweeps), static_cast<unsigned long long>(c.sweeps_certified),
               static_cast<unsigned long long>(c.sweep_iterations),
               c.sweeps ? static_cast<double>(c.sweep_iterations) / static_cast<double>(c.sweeps) : 0.0,
               static_cast<unsigned long long>(c.sweeps_capped), static_cast<unsigned long long>(c.per_body_clips),
               static_cast<unsigned long long>(c.uniform_clips), static_cast<unsigned long long>(c.held_rounds),
               static_cast<unsigned long long>(c.rounds_shortened), static_cast<unsigned long long>(c.rounds_kept),
-              static_cast<unsigned long long>(c.reversed_rounds));
+              static_cast<unsigned long long>(c.reversed_rounds), static_cast<unsigned long long>(c.hit_resolves),
+              static_cast<unsigned long long>(c.resolves_undone));
   std::printf("  %s\n", describe(shares).c_str());
   for (const ObjectTrack& t : tracks) {
     const Vec3 d = t.final_pose.p - t.start.p;
@@ -649,6 +657,7 @@ int main(int argc, char** argv) {
     j["physics_hz"] = args.physics ? args.physics_hz : 0;
     j["max_substeps"] = args.substeps;
     j["max_clamped_rounds"] = args.clamped_rounds;
+    j["hit_resolves_max"] = args.hit_resolves;
     j["threads"] = params.threads;
     j["body_threads"] = pipe->params().body_threads;
     j["step_us"] = {{"median", median}, {"p99", percentile(step_us, 0.99)}, {"max", percentile(step_us, 1.0)}};
@@ -686,6 +695,8 @@ int main(int argc, char** argv) {
     j["lifted_starts"] = c.lifted_starts;
     j["reacquisitions"] = c.reacquisitions;
     j["reversed_rounds"] = c.reversed_rounds;
+    j["hit_resolves"] = c.hit_resolves;
+    j["hit_resolves_undone"] = c.resolves_undone;
     j["started_inside"] = c.started_inside;
     j["scene_pushouts"] = c.scene_pushouts;
     j["scene_pushouts_unresolved"] = c.pushout_unresolved;
