@@ -401,7 +401,7 @@ bool HandSolver::addHitContacts() {
       for (Contact& c : contacts_) {
         if (c.key != h.key || c.body != h.body || c.object != h.object) continue;
         found = true;
-        if (std::abs(c.distance - h.distance) > kHitContactChange || (c.n_W - h.n_W).norm() > kHitContactChange / 0.01 ||
+        if (std::abs(c.distance - h.distance) > kHitContactChange || (c.n_W - h.n_W).norm() > kHitNormalChange ||
             (c.p_W - h.p_W).norm() > kHitContactChange) {
           c = h;
           added = true;
@@ -616,9 +616,9 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     Clock::time_point t0 = Clock::now();
     generateContacts(in);
     d.times.contacts_us += usSince(t0);
-    // The Gauss step of this round from round_start_ against contacts_, and its figures; then
-    // the sweep of its motion.
-    auto solveAndSweep = [&]() -> const StepReport& {
+    // The Gauss step of this round from round_start_ against contacts_, and its figures (again:
+    // the round solved again with its hit's contacts).
+    auto solveRound = [&](bool again) -> const StepReport& {
       si.contacts = contacts_.data();
       si.num_contacts = static_cast<int>(contacts_.size());
       si.rotation_cap = nullptr;
@@ -626,8 +626,9 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
         if (cap < std::numeric_limits<double>::infinity()) si.rotation_cap = rotation_cap_.data();
       const StepReport& sr = stepper_->step(si);
       if (trace_ >= 1)
-        emit(params_, "trace: frame %llu round %d status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu scale %.3g trust %.3g\n",
-                     static_cast<unsigned long long>(frame), d.substeps + 1, static_cast<int>(sr.solve.status),
+        emit(params_, "trace: frame %llu round %d%s status %d kkt %.2g proj-it %d gap %.3g rows %d flags %u contacts %zu scale %.3g trust %.3g\n",
+                     static_cast<unsigned long long>(frame), d.substeps + (again ? 0 : 1), again ? " re-solved" : "",
+                     static_cast<int>(sr.solve.status),
                      sr.solve.kkt_residual, sr.projection_iterations, sr.joint_errors.gap, sr.rows, sr.flags,
                      contacts_.size(), sr.motion_scale, si.rotation_trust);
       d.times.assembly_us += sr.times.coupling_us + sr.times.assembly_us;
@@ -652,7 +653,7 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
       }
       return sr;
     };
-    const StepReport* srp = &solveAndSweep();
+    const StepReport* srp = &solveRound(false);
     ++d.substeps;
     t0 = Clock::now();
     double toc = sweepLastMotion(&inside);
@@ -684,7 +685,7 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
       d.times.contacts_us += usSince(t0);
       if (!added) break;
       stepper_->adoptPoses(round_start_);
-      srp = &solveAndSweep();
+      srp = &solveRound(true);
       ++counters_.hit_resolves;
       resolved = true;
       t0 = Clock::now();

@@ -400,9 +400,9 @@ class HandSolver {
   /// The room a sweep could still stop a body in: its largest stop distance and tolerance.
   double sweepRoom() const { return params_.sweep.stop_distance + params_.sweep.tolerance; }
   static constexpr int kRecloseAttempts = 3;
-  /// m: a hit's contact that differs from the round's one of the same key by less (distance,
-  /// point; its normal by this over 1 cm) brings nothing new.
-  static constexpr double kHitContactChange = 1e-6;
+  /// A hit's contact that differs from the round's one of the same key by less (distance and
+  /// point, m; normal, unit vector) brings nothing new.
+  static constexpr double kHitContactChange = 1e-6, kHitNormalChange = 1e-4;
   /// A clamped round goes on while a clamp scale grows by more than this factor per round.
   static constexpr double kRoundProgress = 1.05;
   /// m: a first round bringing any body this much closer to its target (largestGain) is progress
