@@ -670,6 +670,10 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
     // target: that motion is clipped instead.
     bool resolved = false;
     for (int again = 0; toc < 1.0 && !inside && again < params_.hit_resolves; ++again) {
+      t0 = Clock::now();
+      const bool added = addHitContacts();  // (reads the sweeps and poses; changes only the contacts)
+      d.times.contacts_us += usSince(t0);
+      if (!added) break;
       if (again == 0) {
         first_.X1 = stepper_->poses();
         first_.report = *srp;
@@ -680,10 +684,6 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
         first_.caps = rotation_cap_;
         first_.toc = toc;
       }
-      t0 = Clock::now();
-      const bool added = addHitContacts();
-      d.times.contacts_us += usSince(t0);
-      if (!added) break;
       stepper_->adoptPoses(round_start_);
       srp = &solveRound(true);
       ++counters_.hit_resolves;
