@@ -673,6 +673,53 @@ TEST(Plausibility, StuckFramesCountAHandThatCouldMoveButDoesNot) {
   EXPECT_TRUE(plausible(b, &why)) << why;
 }
 
+// A frame's rounds go on while they still bring a body centimetres closer, although one body pins
+// the clamp's shared scale: a finger held at its joint limit asks the same 1.6 rad turn every
+// round (the scale stays 0.5 / 1.6), while a free probe, 6 cm from its target, closes 31 % of the
+// rest each round. Oracle: the clamp's arithmetic. Stopped after the second round (the scale did
+// not grow) the probe ends 6 cm × 0.69² ≈ 29 mm short; going on to max_clamped_rounds (5), about
+// 6 cm × 0.69⁵ ≈ 9 mm (the sixth round would gain less than MetricThresholds::kLagAbove, 4 mm).
+TEST(Plausibility, AFingerHeldAtItsLimitDoesNotStopTheOthersCatchingUp) {
+  const std::string text = R"(name: "pinned"
+bodies { name: "palm" box { half_extents { x: 0.04 y: 0.04 z: 0.01 } } mass: 1.0
+  rest_position { x: 0 y: 0 z: 0 } rest_orientation { w: 1 x: 0 y: 0 z: 0 } tracker_segment: "palm" }
+bodies { name: "finger" capsule { radius: 0.008 half_length: 0.02 } mass: 0.02
+  rest_position { x: 0 y: 0.07 z: 0 } rest_orientation { w: 0.7071067811865476 x: -0.7071067811865476 y: 0 z: 0 }
+  tracker_segment: "finger" }
+bodies { name: "probe" sphere { radius: 0.01 } mass: 0.01
+  rest_position { x: 0.2 y: 0 z: 0 } rest_orientation { w: 1 x: 0 y: 0 z: 0 } tracker_segment: "probe" }
+joints { name: "knuckle" type: REVOLUTE parent: "palm" child: "finger"
+  anchor_parent { x: 0 y: 0.045 z: 0 } anchor_child { x: 0 y: 0 z: -0.025 }
+  axis_parent { x: 1 y: 0 z: 0 } axis_child { x: 1 y: 0 z: 0 }
+  reference_parent { x: 0 y: 1 z: 0 } reference_child { x: 0 y: 0 z: 1 }
+  limits { angle: 1 lower: -0.05 upper: 0.05 } }
+)";
+  const HandModel m = HandModel::fromText(text, "pinned");
+  Scene scene = sceneOf({meshObject("plate", boxMesh(Vec3(0.5, 0.5, 0.05)), at(0, 0, -1.0))});
+  const PipelineParams p = params(1.0 / 100);
+  Pipeline pipe(scene, {&m}, p);
+  std::vector<Pose> targets = m.restPoses(Pose{});
+  pipe.step({HandInput{true, targets.data(), nullptr}});  // starts at its targets
+  // The finger's target turned 1.6 rad about the knuckle's axis (x through the anchor): 1.55 rad
+  // beyond its limit. The probe's 6 cm along +x.
+  const Quat turn(Eigen::AngleAxisd(1.6, Vec3::UnitX()));
+  const Vec3 anchor(0, 0.045, 0);
+  targets[1].p = anchor + turn * (targets[1].p - anchor);
+  targets[1].q = turn * targets[1].q;
+  targets[2].p.x() += 0.06;
+  pipe.step({HandInput{true, targets.data(), nullptr}});
+  const std::vector<Pose>& X = pipe.poses(0);
+  const double short_of = (targets[2].p - X[2].p).norm();
+  const int rounds = pipe.result(0).diag.substeps;
+  std::printf("[figure] a finger held at its limit: the free probe ends the frame %.2f mm short of its 60 mm move "
+              "after %d rounds (stopped at the second: 29 mm)\n", 1e3 * short_of, rounds);
+  EXPECT_EQ(rounds, p.max_clamped_rounds);
+  EXPECT_LT(short_of, 0.012) << "the frame stopped while the probe still closed centimetres a round";
+  EXPECT_LT(pipe.result(0).diag.joint_errors.gap, 1e-6);
+  EXPECT_LT(std::abs(logRotation(X[1].q * X[0].q.conjugate() * m.bodies[1].X_MB_rest.q.conjugate()).x()), 0.05 + 1e-6)
+      << "the finger went past its limit";
+}
+
 // The jitter figure counts a body whose motion turns back from one frame to the next: a fed God
 // pose shaking ±1 mm about a target that moves 1 mm per frame (a second, deliberately shaking
 // "implementation"), against the pipeline following the same target (no turn). The free twin
