@@ -86,8 +86,10 @@ struct PipelineParams {
   /// (StepParams::max_step_*) shortened the motion, each round gaining on the last (a low-confidence
   /// Leap hand turning 1.5-3 rad between two 24 fps frames: with 3 rounds the hand in contact and
   /// its free twin ended the frame 7-12 mm apart in free space). Rounds after a clip stay bounded by
-  /// max_substeps. The larger of the two applies.
-  int max_clamped_rounds = 5;
+  /// max_substeps. The larger of the two applies. 8 since 2026-12-05: a hand held on a table while
+  /// its targets flip 1-1.7 rad still gained 15 mm in its fifth round (confidence2 under a tracker
+  /// tilted 15-30°: 11 -> 6 table frames above 5 mm over 27 tables; the 42 mesh runs +0.4 % rounds).
+  int max_clamped_rounds = 8;
   /// Within a round whose sweep hit: the hit bodies' contacts at their TOC poses join the round's
   /// and the round is solved again from its start, at most this many times (while the hit brings
   /// a contact the rows lacked), before the round is clipped (0: clip at once).

@@ -99,7 +99,7 @@ const char* kUsage =
     "                        hand leaves its core to the other; 1: everything one after the other). The\n"
     "                        results are the same for every N\n"
     "  --clamped-rounds N    rounds a frame may take while only the motion clamp shortened them (none\n"
-    "                        clipped), each gaining on the last (default 5; the larger of this and --substeps)\n"
+    "                        clipped), each gaining on the last (default %CLAMPED_ROUNDS%; the larger of this and --substeps)\n"
     "  --hit-resolves N      a round whose sweep hit is solved again from its start with the hit bodies'\n"
     "                        contacts at their TOC, at most N times, before it is clipped (default %HIT_RESOLVES%; 0: clip)\n"
     "  --reacquire-after S   a hand tracked again after a loss of at least S seconds starts again at its\n"
@@ -141,6 +141,7 @@ std::string usageText() {
   std::string u = kUsage;
   const std::pair<const char*, std::string> fields[] = {{"%SUBSTEPS%", std::to_string(d.max_substeps)},
                                                         {"%HIT_RESOLVES%", std::to_string(d.hit_resolves)},
+                                                        {"%CLAMPED_ROUNDS%", std::to_string(d.max_clamped_rounds)},
                                                         {"%CONTACT_ROT%", num(d.step.max_step_rotation_in_contact)},
                                                         {"%MAX_ROT%", num(d.step.max_step_rotation)},
                                                         {"%MAX_TRANS%", num(d.step.max_step_translation)}};

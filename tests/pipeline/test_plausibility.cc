@@ -677,8 +677,9 @@ TEST(Plausibility, StuckFramesCountAHandThatCouldMoveButDoesNot) {
 // the clamp's shared scale: a finger held at its joint limit asks the same 1.6 rad turn every
 // round (the scale stays 0.5 / 1.6), while a free probe, 6 cm from its target, closes 31 % of the
 // rest each round. Oracle: the clamp's arithmetic. Stopped after the second round (the scale did
-// not grow) the probe ends 6 cm × 0.69² ≈ 29 mm short; going on to max_clamped_rounds (5), about
-// 6 cm × 0.69⁵ ≈ 9 mm (the sixth round would gain less than MetricThresholds::kLagAbove, 4 mm).
+// not grow) the probe ends 6 cm × 0.69² ≈ 29 mm short. Going on while a round gains more than
+// MetricThresholds::kLagAbove (5 mm), the rounds gain 18.6, 12.8, 8.9, 6.1 and 4.2 mm: the frame
+// ends after the fifth, 6 cm × 0.69⁵ ≈ 9 mm short, before max_clamped_rounds (8).
 TEST(Plausibility, AFingerHeldAtItsLimitDoesNotStopTheOthersCatchingUp) {
   const std::string text = R"(name: "pinned"
 bodies { name: "palm" box { half_extents { x: 0.04 y: 0.04 z: 0.01 } } mass: 1.0
@@ -713,7 +714,8 @@ joints { name: "knuckle" type: REVOLUTE parent: "palm" child: "finger"
   const int rounds = pipe.result(0).diag.substeps;
   std::printf("[figure] a finger held at its limit: the free probe ends the frame %.2f mm short of its 60 mm move "
               "after %d rounds (stopped at the second: 29 mm)\n", 1e3 * short_of, rounds);
-  EXPECT_EQ(rounds, p.max_clamped_rounds);
+  EXPECT_EQ(rounds, 5);
+  EXPECT_LT(rounds, p.max_clamped_rounds);
   EXPECT_LT(short_of, 0.012) << "the frame stopped while the probe still closed centimetres a round";
   EXPECT_LT(pipe.result(0).diag.joint_errors.gap, 1e-6);
   EXPECT_LT(std::abs(logRotation(X[1].q * X[0].q.conjugate() * m.bodies[1].X_MB_rest.q.conjugate()).x()), 0.05 + 1e-6)
