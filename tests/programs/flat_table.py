@@ -1,11 +1,12 @@
 #!/usr/bin/env python3
 """A recording's hands over a flat table: godhand-bench's plausibility figures, re-measured here.
 
-  flat_table.py BENCH RECORDING [--keep DIR] [--quantile Q]
+  flat_table.py BENCH RECORDING [--keep DIR] [--quantile Q] [--tracker-pose POSE]
 
 The table (a 2 m x 2 m box) has its top at the height of the lowest 5 % (Q) of the free twin's finger
 joints (the ends of its capsules' core segments; the twin is the same hand against an empty
-scene, `--scene none`), so that the targets press into it. Checks (issue 10's table criteria, per hand):
+scene, `--scene none`), so that the targets press into it. --tracker-pose (godhand-bench's) turns the
+recording's hands against the table (both runs). Checks (issue 10's table criteria, per hand):
   - godhand-bench --check passes (penetration <= margin, joint gap, no stuck frame, frozen);
   - the excess lag E = max_b |p_god,b - p_twin,b| - max_b depth_b(twin), computed here from the
     two --poses files with the exact depth of a capsule / box below a plane, agrees with the
@@ -17,6 +18,7 @@ import argparse, collections, csv, json, math, os, subprocess, sys, tempfile
 ap = argparse.ArgumentParser(usage=__doc__.strip().split("\n\n")[0])
 ap.add_argument("bench"); ap.add_argument("recording"); ap.add_argument("--keep")
 ap.add_argument("--quantile", type=float, default=0.05, help="the table top's quantile of the twin's finger joints")
+ap.add_argument("--tracker-pose", help="godhand-bench --tracker-pose for both runs (the hands tilted against the table)")
 a = ap.parse_args()
 d = a.keep or tempfile.mkdtemp(prefix="godhand-table-")
 os.makedirs(d, exist_ok=True)
@@ -25,7 +27,8 @@ tracked = set()  # (hand, frame) with targets: the frames the figures are taken 
 
 
 def bench(*args):
-    r = subprocess.run([a.bench, "--recording", a.recording, "--quiet", *args], capture_output=True, text=True, timeout=600)
+    pose = ["--tracker-pose", a.tracker_pose] if a.tracker_pose else []
+    r = subprocess.run([a.bench, "--recording", a.recording, "--quiet", *pose, *args], capture_output=True, text=True, timeout=600)
     return r
 
 
