@@ -83,7 +83,8 @@ struct PipelineParams {
   /// targets is solved and swept again, at most this many rounds in all.
   int max_substeps = 3;
   /// Rounds a frame may take while no round was clipped and only the motion clamp
-  /// (StepParams::max_step_*) shortened the motion, each round gaining on the last (a low-confidence
+  /// (StepParams::max_step_*) shortened the motion, each round gaining on the last (a clamp scale
+  /// growing by 5 %, or some body brought MetricThresholds::kLagAbove closer to its target) (a low-confidence
   /// Leap hand turning 1.5-3 rad between two 24 fps frames: with 3 rounds the hand in contact and
   /// its free twin ended the frame 7-12 mm apart in free space). Rounds after a clip stay bounded by
   /// max_substeps. The larger of the two applies. 8 since 2026-12-05: a hand held on a table while
