@@ -21,6 +21,7 @@ constexpr int kMaxSahDepth = 48;   ///< below this depth: object-median splits (
 constexpr int kStackSize = 256;    ///< traversal stack (≥ 2 × the maximum depth)
 constexpr double kWindingBeta = 2.0;  ///< Barill et al. 2018 accuracy parameter
 constexpr double kPi = 3.14159265358979323846;
+constexpr double kTieSlack = 1e-12;  ///< closest(): pruning slack per metre of coordinates (round-off)
 constexpr double kMinShrink = 1e-9;  ///< m: least margin of a triangle in advancementStep
 
 double surfaceArea(const Aabb& b) {
@@ -448,15 +449,41 @@ struct MeshBvh::Impl {
   // The queries, compiled once per shape type (CoreM<kType>); see bvh.h for what they return.
   template <ShapeType kType>
   static bool closest(const MeshBvh& bvh, const Shape& shape, const Pose& X_MB, double max_distance,
-                      NearTriangle* out) {
+                      NearTriangle* out, int hint) {
     if (bvh.nodes_.empty() || std::isnan(max_distance)) return false;
     double best = max_distance + coreRadius(shape);  // core-distance threshold, inclusive
     if (best < 0.0) return false;
     const CoreM<kType> core(shape, X_MB);
     const Mat3 R_BM = core.R_MB.transpose();
-    int best_index = -1;
+    // Bounds are pruned only above the best by more than their round-off (a bound of a triangle
+    // at the best distance may come out a few ulps of the coordinates above it), so that every
+    // triangle at the least distance is visited whatever the order the best was found in: the
+    // hint then cannot change the result.
+    const double tie = kTieSlack * (1.0 + bvh.bounds_.lo.cwiseAbs().cwiseMax(bvh.bounds_.hi.cwiseAbs()).maxCoeff() +
+                                    X_MB.p.cwiseAbs().maxCoeff());
+    int best_index = -1;  // position in order_; the hint: −2 − triangle
+    int best_triangle = std::numeric_limits<int>::max();  // its mesh index: ties go to the lowest
     Vec3 best_core_B, best_tri_B;
     std::array<Vec3, 3> best_abc_B;
+    // The hint first: its distance prunes from the start what the traversal would prune only once
+    // it got there. The traversal still visits every triangle whose bound is within the best (the
+    // hint's own leaf included) and keeps, of those at the least distance, the lowest index, which
+    // does not depend on the order they are met in: the result is the one without the hint, bit
+    // for bit (Bvh.HintLeavesTheClosestUnchanged).
+    if (hint >= 0 && hint < bvh.mesh_.triangleCount()) {
+      const Vec3 a = bvh.mesh_.vertex(hint, 0), b = bvh.mesh_.vertex(hint, 1), c = bvh.mesh_.vertex(hint, 2);
+      const std::array<Vec3, 3> abc_B = {R_BM * (a - X_MB.p), R_BM * (b - X_MB.p), R_BM * (c - X_MB.p)};
+      Vec3 core_B, tri_B;
+      const double d = detail::coreTriangle(shape, abc_B[0], abc_B[1], abc_B[2], &core_B, &tri_B);
+      if (d <= best) {
+        best = d;
+        best_index = -2 - hint;
+        best_triangle = hint;
+        best_core_B = core_B;
+        best_tri_B = tri_B;
+        best_abc_B = abc_B;
+      }
+    }
 
     int stack[kStackSize];
     double stack_lb[kStackSize];
@@ -465,19 +492,21 @@ struct MeshBvh::Impl {
     stack_lb[sp++] = core.lowerBound(bvh.nodes_[0].box);
     while (sp > 0) {
       --sp;
-      if (stack_lb[sp] > best) continue;
+      if (stack_lb[sp] > best + tie) continue;
       const Node& node = bvh.nodes_[static_cast<size_t>(stack[sp])];
       if (node.count > 0) {
         for (int i = node.first; i < node.first + node.count; ++i) {
-          if (core.gapBound(bvh.tri_boxes_[static_cast<size_t>(i)]) > best) continue;
+          if (core.gapBound(bvh.tri_boxes_[static_cast<size_t>(i)]) > best + tie) continue;
           const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
-          if (core.lowerBound(v) > best) continue;
+          if (core.lowerBound(v) > best + tie) continue;
           const std::array<Vec3, 3> abc_B = {R_BM * (v[0] - X_MB.p), R_BM * (v[1] - X_MB.p), R_BM * (v[2] - X_MB.p)};
           Vec3 core_B, tri_B;
           const double d = detail::coreTriangle(shape, abc_B[0], abc_B[1], abc_B[2], &core_B, &tri_B);
-          if (d <= best) {
+          const int triangle = bvh.order_[static_cast<size_t>(i)];
+          if (d < best || (d == best && (best_index == -1 || triangle < best_triangle))) {
             best = d;
             best_index = i;
+            best_triangle = triangle;
             best_core_B = core_B;
             best_tri_B = tri_B;
             best_abc_B = abc_B;
@@ -494,29 +523,29 @@ struct MeshBvh::Impl {
         lb_left = lane0(gap);
         lb_right = lane1(gap);
         if constexpr (kType != ShapeType::Sphere) {
-          if (!(lb_left > best) || !(lb_right > best)) {
+          if (!(lb_left > best + tie) || !(lb_right > best + tie)) {
             Lanes3 u;
             Lanes sep;
             centreBound2<kType>(core, pair_box, &u, &sep);
             const Lanes lb = lmax(gap, sep);
-            if (!(lb_left > best)) lb_left = lane0(lb);
-            if (!(lb_right > best)) lb_right = lane1(lb);
+            if (!(lb_left > best + tie)) lb_left = lane0(lb);
+            if (!(lb_right > best + tie)) lb_right = lane1(lb);
           }
         }
       }
 #else
-      const double lb_left = core.lowerBound(bvh.nodes_[static_cast<size_t>(node.first)].box, best);
-      const double lb_right = core.lowerBound(bvh.nodes_[static_cast<size_t>(node.right)].box, best);
+      const double lb_left = core.lowerBound(bvh.nodes_[static_cast<size_t>(node.first)].box, best + tie);
+      const double lb_right = core.lowerBound(bvh.nodes_[static_cast<size_t>(node.right)].box, best + tie);
 #endif
       // Nearer child on top of the stack.
       const bool left_first = lb_left <= lb_right;
       const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
       const double far_lb = left_first ? lb_right : lb_left, near_lb = left_first ? lb_left : lb_right;
-      if (far_lb <= best) { stack[sp] = far_node; stack_lb[sp++] = far_lb; }
-      if (near_lb <= best) { stack[sp] = near_node; stack_lb[sp++] = near_lb; }
+      if (far_lb <= best + tie) { stack[sp] = far_node; stack_lb[sp++] = far_lb; }
+      if (near_lb <= best + tie) { stack[sp] = near_node; stack_lb[sp++] = near_lb; }
     }
-    if (best_index < 0) return false;
-    out->triangle = bvh.order_[static_cast<size_t>(best_index)];
+    if (best_index == -1) return false;
+    out->triangle = best_index >= 0 ? bvh.order_[static_cast<size_t>(best_index)] : -2 - best_index;
     out->closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, best, best_core_B, best_tri_B, best_abc_B[0],
                                                best_abc_B[1], best_abc_B[2]);
     return true;
@@ -844,11 +873,11 @@ void MeshBvh::trianglesOverlapping(const Aabb& box_M, std::vector<int>* out) con
   }
 }
 
-bool MeshBvh::closest(const Shape& shape, const Pose& X_MB, double max_distance, NearTriangle* out) const {
+bool MeshBvh::closest(const Shape& shape, const Pose& X_MB, double max_distance, NearTriangle* out, int hint) const {
   switch (shape.type) {
-    case ShapeType::Sphere: return Impl::closest<ShapeType::Sphere>(*this, shape, X_MB, max_distance, out);
-    case ShapeType::Capsule: return Impl::closest<ShapeType::Capsule>(*this, shape, X_MB, max_distance, out);
-    case ShapeType::Box: return Impl::closest<ShapeType::Box>(*this, shape, X_MB, max_distance, out);
+    case ShapeType::Sphere: return Impl::closest<ShapeType::Sphere>(*this, shape, X_MB, max_distance, out, hint);
+    case ShapeType::Capsule: return Impl::closest<ShapeType::Capsule>(*this, shape, X_MB, max_distance, out, hint);
+    case ShapeType::Box: return Impl::closest<ShapeType::Box>(*this, shape, X_MB, max_distance, out, hint);
   }
   return false;
 }

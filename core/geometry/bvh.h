@@ -43,8 +43,11 @@ class MeshBvh {
   void trianglesOverlapping(const Aabb& box_M, std::vector<int>* out) const;
 
   /// Closest triangle to the shape at X_MB if the shape distance is ≤ max_distance: fills
-  /// *out and returns true; else returns false. Exact to round-off (brute-force equal).
-  bool closest(const Shape& shape, const Pose& X_MB, double max_distance, NearTriangle* out) const;
+  /// *out and returns true; else returns false. Exact to round-off (brute-force equal); of
+  /// triangles at exactly the least distance (a shared corner or edge), the lowest index.
+  /// `hint` (a triangle index, e.g. what the same query found a step before) is measured first so
+  /// that the traversal prunes from the start; the result is the same bit for bit without it.
+  bool closest(const Shape& shape, const Pose& X_MB, double max_distance, NearTriangle* out, int hint = -1) const;
 
   /// Appends every triangle within max_distance of the shape at X_MB, with its closest points.
   void near(const Shape& shape, const Pose& X_MB, double max_distance, std::vector<NearTriangle>* out) const;

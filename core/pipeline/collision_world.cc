@@ -363,6 +363,16 @@ bool CollisionWorld::insideGod(const Object& o, const Pose& X_OB) const {
   return o.god->inside(X_OB.p);
 }
 
+int& CollisionWorld::hintOf(int object, int body, int sample) {
+  scratch_hint_ = -1;
+  if (body < 0 || body >= kHintBodies || object < 0) return scratch_hint_;
+  // Grown once per object that a query reaches (objects far from every hand cost nothing).
+  if (hints_.size() <= static_cast<size_t>(object)) hints_.resize(static_cast<size_t>(object) + 1);
+  std::vector<int>& h = hints_[static_cast<size_t>(object)];
+  if (h.empty()) h.assign(static_cast<size_t>(kHintBodies) * kPartSamples, -1);
+  return h[static_cast<size_t>(body) * kPartSamples + static_cast<size_t>(sample)];
+}
+
 int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body, double reach,
                              const ContactParams& params, std::vector<Contact>* out, QueryStart* start) {
   if (start) {
@@ -432,7 +442,11 @@ int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body
     for (int k = 0; k < num_samples; ++k) {
       geo::NearTriangle c;
       const Pose X_OS{X_OB * offsets[k], X_OB.q};
-      const bool found = o.god->closest(samples[k], X_OS, range, &c);
+      // What this sample of this body found here last time starts the search (the same result,
+      // found sooner: MeshBvh::closest).
+      int& hint = hintOf(object, body, k);
+      const bool found = o.god->closest(samples[k], X_OS, range, &c, hint);
+      if (found) hint = c.triangle;
       if (k == 0 && start) {
         geo::SweepStart s;
         s.range = range;

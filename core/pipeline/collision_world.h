@@ -187,6 +187,12 @@ class CollisionWorld {
   mutable bool rebuild_ = true;
   mutable std::size_t moved_since_build_ = 0;
   mutable std::vector<int> cand_, stack_;     // scratch
+  // contacts(): per (object, body, part sample), the triangle its closest-point query found last
+  // (−1: none), the next query's hint. Bodies 0 … kHintBodies − 1 only.
+  static constexpr int kHintBodies = 64;
+  std::vector<std::vector<int>> hints_;  ///< per object: kHintBodies × part samples
+  int scratch_hint_ = -1;
+  int& hintOf(int object, int body, int sample);
 
   /// Charges each queried object the time since the previous charge (or since begin()):
   /// one clock read per object.

@@ -44,34 +44,42 @@ constexpr double kTiny = 1e-300;
   for (; i <= hi; ++i) x[i] -= col[i] * xj;
 #endif
 }
-// acc − Σ col[i] x[i] over i = lo … hi, subtracted one by one in increasing i (the order fixes
-// the bits); unrolled by eight only.
+// acc − Σ col[i] x[i] over i = lo … hi. The sum is split over four partial sums (two SSE2
+// registers of two lanes) so that the products do not wait on one long chain of additions; the
+// order is fixed by lo and hi alone, so the bits are the same on every run and in every process.
 [[gnu::always_inline]] inline double subDot(double acc, const double* col, const double* x, int lo, int hi) {
   int i = lo;
-  for (; i + 7 <= hi; i += 8) {
-    acc -= col[i] * x[i];
-    acc -= col[i + 1] * x[i + 1];
-    acc -= col[i + 2] * x[i + 2];
-    acc -= col[i + 3] * x[i + 3];
-    acc -= col[i + 4] * x[i + 4];
-    acc -= col[i + 5] * x[i + 5];
-    acc -= col[i + 6] * x[i + 6];
-    acc -= col[i + 7] * x[i + 7];
-  }
-  if (i + 3 <= hi) {
-    acc -= col[i] * x[i];
-    acc -= col[i + 1] * x[i + 1];
-    acc -= col[i + 2] * x[i + 2];
-    acc -= col[i + 3] * x[i + 3];
-    i += 4;
+#if defined(__SSE2__)
+  __m128d s0 = _mm_setzero_pd(), s1 = _mm_setzero_pd();
+  for (; i + 3 <= hi; i += 4) {
+    s0 = _mm_add_pd(s0, _mm_mul_pd(_mm_loadu_pd(col + i), _mm_loadu_pd(x + i)));
+    s1 = _mm_add_pd(s1, _mm_mul_pd(_mm_loadu_pd(col + i + 2), _mm_loadu_pd(x + i + 2)));
   }
   if (i + 1 <= hi) {
-    acc -= col[i] * x[i];
-    acc -= col[i + 1] * x[i + 1];
+    s0 = _mm_add_pd(s0, _mm_mul_pd(_mm_loadu_pd(col + i), _mm_loadu_pd(x + i)));
     i += 2;
   }
-  if (i <= hi) acc -= col[i] * x[i];
-  return acc;
+  s0 = _mm_add_pd(s0, s1);
+  double sum = _mm_cvtsd_f64(s0) + _mm_cvtsd_f64(_mm_unpackhi_pd(s0, s0));
+  if (i <= hi) sum += col[i] * x[i];
+  return acc - sum;
+#else
+  double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+  for (; i + 3 <= hi; i += 4) {
+    s0 += col[i] * x[i];
+    s1 += col[i + 1] * x[i + 1];
+    s2 += col[i + 2] * x[i + 2];
+    s3 += col[i + 3] * x[i + 3];
+  }
+  if (i + 1 <= hi) {
+    s0 += col[i] * x[i];
+    s1 += col[i + 1] * x[i + 1];
+    i += 2;
+  }
+  double sum = (s0 + s2) + (s1 + s3);
+  if (i <= hi) sum += col[i] * x[i];
+  return acc - sum;
+#endif
 }
 constexpr double kNoiseUlps = 4.0 * std::numeric_limits<double>::epsilon();  // round-off floor of a slack
 template <class V>
@@ -89,6 +97,7 @@ void ActiveSetSolver::reserve(int bodies, int rows) {
     L_.assign(static_cast<size_t>(capacity_) * static_cast<size_t>(capacity_), 0.0);
     passive_.reserve(static_cast<size_t>(capacity_));
     last_.assign(static_cast<size_t>(capacity_), 0);
+    inv_diag_.assign(static_cast<size_t>(capacity_), 0.0);
     band_.assign(static_cast<size_t>(capacity_), 0);
   }
   const size_t m = static_cast<size_t>(rows);
@@ -180,7 +189,7 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
       if (write_now) col[n] = x[j];
       continue;
     }
-    x[j] /= col[j];
+    x[j] *= inv_diag_[static_cast<size_t>(j)];
     ll += x[j] * x[j];
     const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
     if (j < n_eq_) {
@@ -197,7 +206,9 @@ bool ActiveSetSolver::append(const QpProblem& p, int k) {
   if (!std::isfinite(pivot2) || !(pivot2 > 0.0)) return false;
   if (!write_now)
     for (int j = first; j < n; ++j) setRow(j, L + static_cast<size_t>(j) * cap);
-  L[static_cast<size_t>(n) * cap + static_cast<size_t>(n)] = std::sqrt(pivot2);
+  const double diag = std::sqrt(pivot2);
+  L[static_cast<size_t>(n) * cap + static_cast<size_t>(n)] = diag;
+  inv_diag_[static_cast<size_t>(n)] = 1.0 / diag;
   last_[static_cast<size_t>(n)] = n;
   if (n_eq_ > 0 || row.type == RowType::Inequality) {
     // The row's share of the forward substitution over the equality columns (see gb_).
@@ -248,15 +259,18 @@ void ActiveSetSolver::remove(int pos) {
     const int end = lk - pos;
     xend = end;
     double& Tkk = at(pos + k, pos + k);
-    const double rr = std::hypot(Tkk, xk);
-    const double c = rr / Tkk, s = xk / Tkk;
+    // (A factor's entries are square roots of the rows' scales: no overflow to guard against.)
+    const double rr = std::sqrt(Tkk * Tkk + xk * xk);
+    const double inv_t = 1.0 / Tkk;
+    const double c = rr * inv_t, s = xk * inv_t, inv_c = Tkk / rr;
     Tkk = rr;
     for (int i = k + 1; i <= end; ++i) {
       double& Tik = at(pos + i, pos + k);
-      Tik = (Tik + s * tmp_[static_cast<size_t>(i)]) / c;
+      Tik = (Tik + s * tmp_[static_cast<size_t>(i)]) * inv_c;
       tmp_[static_cast<size_t>(i)] = c * tmp_[static_cast<size_t>(i)] - s * Tik;
     }
   }
+  for (int j = pos; j + 1 < n; ++j) inv_diag_[static_cast<size_t>(j)] = 1.0 / at(j, j);
   position_[static_cast<size_t>(passive_[static_cast<size_t>(pos)])] = -1;
   for (int i = pos + 1; i < n; ++i) {
     passive_[static_cast<size_t>(i - 1)] = passive_[static_cast<size_t>(i)];
@@ -337,7 +351,7 @@ void ActiveSetSolver::forward(double* x, int from) const {
   for (; j < n_eq_; ++j) {
     if (x[j] == 0.0) continue;
     const double* col = L + static_cast<size_t>(j) * cap;
-    x[j] /= col[j];
+    x[j] *= inv_diag_[static_cast<size_t>(j)];
     const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
     subScaled(x, col, x[j], j + 1, std::min(end, band_[static_cast<size_t>(j)]));
     subScaled(x, col, x[j], n_eq_, end);
@@ -345,7 +359,7 @@ void ActiveSetSolver::forward(double* x, int from) const {
   for (; j < n; ++j) {
     if (x[j] == 0.0) continue;
     const double* col = L + static_cast<size_t>(j) * cap;
-    x[j] /= col[j];
+    x[j] *= inv_diag_[static_cast<size_t>(j)];
     subScaled(x, col, x[j], j + 1, std::min(last_[static_cast<size_t>(j)], n - 1));
   }
 }
@@ -357,13 +371,13 @@ void ActiveSetSolver::backward(double* x) const {
   int j = n - 1;
   for (; j >= n_eq_; --j) {
     const double* col = L + static_cast<size_t>(j) * cap;
-    x[j] = subDot(x[j], col, x, j + 1, std::min(last_[static_cast<size_t>(j)], n - 1)) / col[j];
+    x[j] = subDot(x[j], col, x, j + 1, std::min(last_[static_cast<size_t>(j)], n - 1)) * inv_diag_[static_cast<size_t>(j)];
   }
   for (; j >= 0; --j) {
     const double* col = L + static_cast<size_t>(j) * cap;
     const int end = std::min(last_[static_cast<size_t>(j)], n - 1);
     const double acc = subDot(x[j], col, x, j + 1, std::min(end, band_[static_cast<size_t>(j)]));
-    x[j] = subDot(acc, col, x, n_eq_, end) / col[j];
+    x[j] = subDot(acc, col, x, n_eq_, end) * inv_diag_[static_cast<size_t>(j)];
   }
 }
 
@@ -425,14 +439,16 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
     for (int k = 0; k < m; ++k)
       if (isIneq(k) && warm_passive[k]) append(p, k);
   solvePassive(p);
-  // A warm set may be infeasible: drop its most negative multiplier until λ_I > 0.
+  // A warm set may be infeasible: drop every row whose multiplier is not positive, solve again,
+  // until λ_I > 0 (each pass shrinks the set; a row dropped too early enters again below).
   for (;;) {
-    int worst = -1;
-    for (size_t i = 0; i < passive_.size(); ++i)
-      if (isIneq(passive_[i]) && s_[i] <= 0.0 && (worst < 0 || s_[i] < s_[static_cast<size_t>(worst)]))
-        worst = static_cast<int>(i);
-    if (worst < 0) break;
-    remove(worst);
+    bool dropped = false;
+    for (int i = static_cast<int>(passive_.size()) - 1; i >= n_eq_; --i)
+      if (isIneq(passive_[static_cast<size_t>(i)]) && s_[static_cast<size_t>(i)] <= 0.0) {
+        remove(i);
+        dropped = true;
+      }
+    if (!dropped) break;
     solvePassive(p);
   }
   for (size_t i = 0; i < passive_.size(); ++i) lambda_p_[i] = s_[i];

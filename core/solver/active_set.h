@@ -71,6 +71,7 @@ class ActiveSetSolver {
   std::vector<double> L_;                  // column-major, capacity_ × capacity_
   std::vector<int> passive_;               // row indices in factor order
   std::vector<int> last_;                  // per factor column: last row that may be nonzero
+  std::vector<double> inv_diag_;           // per factor column: 1 / L_jj (substitutions multiply)
   // The equality rows are the first n_eq_ of the factor and never leave it. Column j < n_eq_ is
   // zero in rows band_[j]+1 … n_eq_-1 (the equality block's own fill ends at band_[j]); rows
   // from n_eq_ on are inequalities, which fill it down to last_[j]. The substitutions skip the

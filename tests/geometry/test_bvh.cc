@@ -333,6 +333,73 @@ TEST(Bvh, BunnyRandomShapesMatchBruteForce) {
   }
 }
 
+// A hint (any triangle: the query's own answer, a neighbour, one far away, an invalid index) is
+// measured first to prune sooner; the answer must be the one without it, bit for bit, including
+// which of several triangles at the least distance (a shared vertex or edge) is returned.
+TEST(Bvh, HintLeavesTheClosestUnchanged) {
+  Rng rng(16);
+  TriangleMesh far_mesh = icosphere(0.05, 3);
+  for (auto& v : far_mesh.vertices) v += Vec3(1e4, 2e3, -1e4);
+  const MeshBvh far_bvh(far_mesh);
+  int with_ties = 0, checked = 0;
+  for (const MeshBvh* bvh : {&bunny(), &far_bvh}) {
+    const int nt = bvh->triangleCount();
+    for (int q = 0; q < 600; ++q) {
+      const Shape s = randomShape(rng, q);
+      Pose X = nearSurfacePose(rng, bvh->mesh());
+      if (q >= 300) {
+        // Resting 0.1 mm off a triangle, a box's face or a capsule's side parallel to it (where
+        // a palm or phalanx lies on a surface, and where triangles tie).
+        const int t = rng.integer(0, bvh->triangleCount() - 1);
+        const Vec3 a = bvh->mesh().vertex(t, 0), b = bvh->mesh().vertex(t, 1), c = bvh->mesh().vertex(t, 2);
+        const Vec3 n = (b - a).cross(c - a).normalized();
+        const Quat spin(Eigen::AngleAxisd(rng.uniform(0.0, 6.283), Vec3::UnitZ()));
+        X.q = Quat::FromTwoVectors(Vec3::UnitZ(), n) * spin;
+        if (s.type == ShapeType::Capsule) X.q = X.q * Quat(Eigen::AngleAxisd(1.5707963267948966, Vec3::UnitX()));
+        const double reach = s.type == ShapeType::Box ? s.half_extents.z() : s.radius;
+        X.p = (a + b + c) / 3.0 + (reach + 1e-4) * n;
+      }
+      const double window = q % 3 == 0 ? 1.0 : 0.01;
+      NearTriangle plain;
+      const bool found = bvh->closest(s, X, window, &plain);
+      const int hints[] = {found ? plain.triangle : 0, rng.integer(0, nt - 1), found ? (plain.triangle + 1) % nt : 1, -5, nt + 3};
+      for (const int hint : hints) {
+        NearTriangle hinted;
+        ASSERT_EQ(bvh->closest(s, X, window, &hinted, hint), found) << "query " << q << " hint " << hint;
+        if (!found) continue;
+        ++checked;
+        EXPECT_EQ(hinted.triangle, plain.triangle) << "query " << q << " hint " << hint;
+        EXPECT_EQ(hinted.closest.distance, plain.closest.distance);
+        EXPECT_EQ(hinted.closest.p_triangle, plain.closest.p_triangle);
+        EXPECT_EQ(hinted.closest.n, plain.closest.n);
+      }
+      // A hint at the same distance as the answer (a tie: the triangles sharing the answer's
+      // nearest corner or edge): still the answer without the hint.
+      if (found) {
+        const auto& tris = bvh->mesh().triangles;
+        const auto& mine = tris[static_cast<size_t>(plain.triangle)];
+        for (int t = 0; t < nt; ++t) {
+          if (t == plain.triangle) continue;
+          const auto& other = tris[static_cast<size_t>(t)];
+          bool shares = false;
+          for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) shares = shares || mine[static_cast<size_t>(i)] == other[static_cast<size_t>(j)];
+          if (!shares) continue;
+          const double d = shapeTriangle(s, X, bvh->mesh().vertex(t, 0), bvh->mesh().vertex(t, 1), bvh->mesh().vertex(t, 2)).distance;
+          if (std::abs(d - plain.closest.distance) > 1e-15) continue;
+          ++with_ties;
+          NearTriangle hinted;
+          ASSERT_TRUE(bvh->closest(s, X, window, &hinted, t));
+          EXPECT_EQ(hinted.triangle, plain.triangle) << "tie hint " << t;
+          EXPECT_EQ(hinted.closest.distance, plain.closest.distance);
+        }
+      }
+    }
+  }
+  std::printf("[figure] closest with a hint: %d answers compared, %d tied triangles given as hints\n", checked, with_ties);
+  EXPECT_GT(with_ties, 0);  // the tie case was exercised
+}
+
 TEST(Bvh, FarFromTheOrigin) {
   Rng rng(15);
   TriangleMesh m = icosphere(0.05, 2);
