@@ -60,8 +60,14 @@ class MeshBvh {
   /// direction w from the shape towards the triangle can shrink (ρ_c = coreBoundingRadius). BVH
   /// nodes are skipped with the same bound on their boxes. *limiting gets the triangle that sets
   /// Δ with its closest points now (triangle −1 if Δ = horizon). `hint` (a triangle index, e.g.
-  /// the previous step's limiting one) is evaluated first to tighten the pruning; it does not
-  /// change the result. Never throws, allocates nothing.
+  /// the previous step's limiting one) is evaluated first to tighten the pruning. Unlike
+  /// closest()'s, it can change the answer a little, never its safety: of triangles with the
+  /// same time the first met is *limiting (the hint, if it is one of them), and (presumably, as
+  /// in closest() before its round-off slack) a subtree whose bound comes out a few ulps above
+  /// the best is pruned. Measured on the bunny (capsules, spheres and boxes resting 0.1 mm off it
+  /// and moving, 3,000 poses, three hints each): of 9,000 calls the time differed in 10, the
+  /// limiting triangle in 1,061. Every Δ returned is a lower bound of the contact time either
+  /// way. Never throws, allocates nothing.
   double advancementStep(const Shape& shape, const Pose& X_MB, const Vec3& dp_M, const Vec3& theta_M, double eta,
                          double horizon, NearTriangle* limiting, int hint = -1) const;
 
