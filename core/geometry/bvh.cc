@@ -459,8 +459,7 @@ struct MeshBvh::Impl {
     // at the best distance may come out a few ulps of the coordinates above it), so that every
     // triangle at the least distance is visited whatever the order the best was found in: the
     // hint then cannot change the result.
-    const double tie = kTieSlack * (1.0 + bvh.bounds_.lo.cwiseAbs().cwiseMax(bvh.bounds_.hi.cwiseAbs()).maxCoeff() +
-                                    X_MB.p.cwiseAbs().maxCoeff());
+    const double tie = kTieSlack * (1.0 + bvh.max_coordinate_ + X_MB.p.cwiseAbs().maxCoeff());
     int best_index = -1;  // position in order_; the hint: −2 − triangle
     int best_triangle = std::numeric_limits<int>::max();  // its mesh index: ties go to the lowest
     Vec3 best_core_B, best_tri_B;
@@ -852,6 +851,7 @@ MeshBvh::MeshBvh(TriangleMesh mesh) : mesh_(std::move(mesh)) {
     tri_vertices_[static_cast<size_t>(i)] = {mesh_.vertex(t, 0), mesh_.vertex(t, 1), mesh_.vertex(t, 2)};
   }
   bounds_ = nodes_.front().box;
+  max_coordinate_ = bounds_.lo.cwiseAbs().cwiseMax(bounds_.hi.cwiseAbs()).maxCoeff();
 }
 
 void MeshBvh::trianglesOverlapping(const Aabb& box_M, std::vector<int>* out) const {

@@ -101,6 +101,7 @@ class MeshBvh {
   struct Impl;  ///< build and traversal helpers (bvh.cc)
   TriangleMesh mesh_;
   Aabb bounds_;
+  double max_coordinate_ = 0.0;  ///< max |coordinate| of bounds_: closest()'s round-off scale
   bool solid_ = true;
   std::vector<std::uint8_t> creases_;
   std::vector<Node> nodes_;       ///< depth-first: an inner node's left child follows it

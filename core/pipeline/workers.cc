@@ -1,8 +1,27 @@
 #include "pipeline/workers.h"
 
+#include <chrono>
 #include <stdexcept>
 
 namespace godhand {
+namespace {
+
+constexpr double kSpinMicros = 300.0;  ///< how long a thread out of jobs polls before it blocks
+
+/// Polls `done` until it holds or kSpinMicros have passed, yielding the core at every poll (a
+/// runnable thread, e.g. the other hand's solver, gets it at once).
+template <class Done>
+void pollFor(const Done& done) {
+  const auto start = std::chrono::steady_clock::now();
+  for (int i = 1; !done(); ++i) {
+    std::this_thread::yield();
+    if (i % 16 == 0 &&
+        std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - start).count() > kSpinMicros)
+      return;
+  }
+}
+
+}  // namespace
 
 Workers::Workers(int threads) {
   if (threads < 1 || threads > 64) throw std::invalid_argument("threads must be in [1, 64]");
@@ -33,6 +52,7 @@ void Workers::drain(std::unique_lock<std::mutex>& lock, int slot) {
     }
     lock.lock();
     if (e && !error_) error_ = e;
+    unfinished_.fetch_sub(1, std::memory_order_release);
     if (--running_ == 0 && next_ >= n_) done_.notify_all();
   }
 }
@@ -41,6 +61,9 @@ void Workers::loop(int slot) {
   std::unique_lock<std::mutex> lock(mutex_);
   std::uint64_t seen = 0;  // a thread that starts late still joins the first run
   for (;;) {
+    lock.unlock();
+    pollFor([&] { return stop_.load(std::memory_order_relaxed) || generation_.load(std::memory_order_acquire) != seen; });
+    lock.lock();
     start_.wait(lock, [&] { return stop_ || generation_ != seen; });
     if (stop_) return;
     seen = generation_;
@@ -72,9 +95,15 @@ void Workers::runSlots(int n, const std::function<void(int, int)>& job) {
   n_ = n;
   next_ = 0;
   error_ = nullptr;
+  unfinished_.store(n, std::memory_order_relaxed);
   ++generation_;
   start_.notify_all();
   drain(lock, 0);
+  if (running_ > 0) {  // the last jobs are still running on other threads
+    lock.unlock();
+    pollFor([&] { return unfinished_.load(std::memory_order_acquire) <= 0; });
+    lock.lock();
+  }
   done_.wait(lock, [&] { return running_ == 0 && next_ >= n_; });
   job_ = nullptr;
   n_ = 0;

@@ -7,9 +7,11 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "common/files.h"
@@ -131,6 +133,20 @@ TEST(Threads, WorkersRunEveryJobExactlyOnce) {
       }
     }
   }
+}
+
+// Calls in quick succession and calls after the other threads have given up polling and blocked
+// (the two ways a thread waits for work; a lost wake-up would hang here until ctest's timeout).
+TEST(Threads, WorkersWakeForQuickAndForLateCalls) {
+  Workers w(3);
+  std::atomic<long> sum{0};
+  long expected = 0;
+  for (int rep = 0; rep < 3000; ++rep) {
+    w.run(5, [&](int i) { sum += i + 1; });
+    expected += 15;
+    if (rep % 500 == 499) std::this_thread::sleep_for(std::chrono::milliseconds(2));  // past the poll
+  }
+  EXPECT_EQ(sum.load(), expected);
 }
 
 TEST(Threads, AJobsExceptionComesBackAfterTheOthersRan) {
