@@ -469,20 +469,23 @@ struct MeshBvh::Impl {
     // hint's own leaf included) and keeps, of those at the least distance, the lowest index, which
     // does not depend on the order they are met in: the result is the one without the hint, bit
     // for bit (Bvh.HintLeavesTheClosestUnchanged).
-    if (hint >= 0 && hint < bvh.mesh_.triangleCount()) {
-      const Vec3 a = bvh.mesh_.vertex(hint, 0), b = bvh.mesh_.vertex(hint, 1), c = bvh.mesh_.vertex(hint, 2);
-      const std::array<Vec3, 3> abc_B = {R_BM * (a - X_MB.p), R_BM * (b - X_MB.p), R_BM * (c - X_MB.p)};
+    // Measures one triangle (corners v in M; `index` as best_index) and keeps it if it is nearer
+    // than the best, or as near and of a lower index (the first one at the threshold is kept).
+    auto measure = [&](const std::array<Vec3, 3>& v, int triangle, int index) {
+      const std::array<Vec3, 3> abc_B = {R_BM * (v[0] - X_MB.p), R_BM * (v[1] - X_MB.p), R_BM * (v[2] - X_MB.p)};
       Vec3 core_B, tri_B;
       const double d = detail::coreTriangle(shape, abc_B[0], abc_B[1], abc_B[2], &core_B, &tri_B);
-      if (d <= best) {
+      if (d < best || (d == best && (best_index == -1 || triangle < best_triangle))) {
         best = d;
-        best_index = -2 - hint;
-        best_triangle = hint;
+        best_index = index;
+        best_triangle = triangle;
         best_core_B = core_B;
         best_tri_B = tri_B;
         best_abc_B = abc_B;
       }
-    }
+    };
+    if (hint >= 0 && hint < bvh.mesh_.triangleCount())
+      measure({bvh.mesh_.vertex(hint, 0), bvh.mesh_.vertex(hint, 1), bvh.mesh_.vertex(hint, 2)}, hint, -2 - hint);
 
     int stack[kStackSize];
     double stack_lb[kStackSize];
@@ -498,18 +501,7 @@ struct MeshBvh::Impl {
           if (core.gapBound(bvh.tri_boxes_[static_cast<size_t>(i)]) > best + tie) continue;
           const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
           if (core.lowerBound(v) > best + tie) continue;
-          const std::array<Vec3, 3> abc_B = {R_BM * (v[0] - X_MB.p), R_BM * (v[1] - X_MB.p), R_BM * (v[2] - X_MB.p)};
-          Vec3 core_B, tri_B;
-          const double d = detail::coreTriangle(shape, abc_B[0], abc_B[1], abc_B[2], &core_B, &tri_B);
-          const int triangle = bvh.order_[static_cast<size_t>(i)];
-          if (d < best || (d == best && (best_index == -1 || triangle < best_triangle))) {
-            best = d;
-            best_index = i;
-            best_triangle = triangle;
-            best_core_B = core_B;
-            best_tri_B = tri_B;
-            best_abc_B = abc_B;
-          }
+          measure(v, bvh.order_[static_cast<size_t>(i)], i);
         }
         continue;
       }
