@@ -8,8 +8,8 @@
 // A thread that has run out of jobs polls for up to kSpinMicros (yielding the core at every poll)
 // before it blocks: waking a blocked thread takes ~25 µs here (a futex wake and a reschedule),
 // which a hand solver would otherwise pay at each of the several parallel phases of a frame, the
-// serial QPs between them being ~0.1–0.3 ms. Measured (godhand-bench-step BM_WorkersCall, two
-// threads, 16 jobs of ~1.6 µs between serial work): 39 → 14 µs a call.
+// serial QPs between them being ~0.1–0.3 ms. Measured (godhand-bench-pipeline BM_WorkersCall, two
+// threads, 16 jobs of ~1.6 µs between serial work): 35–41 → 17 µs a call.
 #include <atomic>
 #include <condition_variable>
 #include <cstdint>
