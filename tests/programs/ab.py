@@ -7,8 +7,9 @@ cases, on the same (shared, noisy) machine.
 A and B are godhand-bench binaries or directories holding one (e.g. a copy of build/bin made
 before a change, and build/bin). Each round runs every case with A, then with B, so that a load
 that comes and goes falls on both. Per run it prints the median rate, p99, result hash,
-penetration and frozen windows from the bench's own JSON report; then per case the ranges over
-the rounds. The figures are the bench's, defined once in core/pipeline/run_metrics (nothing is
+penetration and the plausibility figures (excess lag p95 and frames above 5 mm, stuck frames,
+frozen windows, jitter) from the bench's own JSON report; then per case the speed ranges over the
+rounds and each side's plausibility. The figures are the bench's, defined once in core/pipeline/run_metrics (nothing is
 recomputed here). --check-same-hash: exit 1 unless every case gave the same hash with A and B (a
 change meant to leave the results alone). A failed run is reported and makes the exit status 1.
 """
@@ -64,7 +65,16 @@ def run(bench, case, frames, extra):
         "hash": j["result_hash"],
         "pen_mm": j["penetration_max_m"] * 1000.0,
         "frozen": f'{j["frozen_windows"]}/{j["moving_windows"]}',
+        "lag_p95_mm": j["excess_lag_m"]["p95"] * 1000.0,
+        "lag_above": j["excess_lag_above_5mm"],
+        "stuck": j["stuck_frames"],
+        "jitter": j["jitter_body_frames"],
     }
+
+
+def plausibility(res):
+    return (f"excess lag p95 {res['lag_p95_mm']:.2f} mm, {res['lag_above']} frames > 5 mm, stuck {res['stuck']}, "
+            f"frozen {res['frozen']}, jitter {res['jitter']} body-frames")
 
 
 def span(values, fmt):
@@ -100,7 +110,7 @@ def main():
                     continue
                 results[(case, side)].append(res)
                 print(f"round {r} {side} {case}: {res['hz']:.0f} Hz, p99 {res['p99_ms']:.2f} ms, hash {res['hash']}, "
-                      f"penetration {res['pen_mm']:.3f} mm, frozen {res['frozen']}", flush=True)
+                      f"penetration {res['pen_mm']:.3f} mm, {plausibility(res)}", flush=True)
     print("\ncase | A Hz | B Hz | A p99 ms | B p99 ms | hashes")
     differ = False
     for case in cases:
@@ -114,6 +124,13 @@ def main():
         hashes = f"same ({next(iter(ha))})" if same else f"A {' '.join(sorted(ha))} / B {' '.join(sorted(hb))}"
         print(f"{case} | {span([x['hz'] for x in a], '{:,.0f}')} | {span([x['hz'] for x in b], '{:,.0f}')} | "
               f"{span([x['p99_ms'] for x in a], '{:.2f}')} | {span([x['p99_ms'] for x in b], '{:.2f}')} | {hashes}")
+    # Beside the speed, the plausibility of each side (the same for every round of a deterministic
+    # build: its first run's figures; see the run lines for every round).
+    print("\ncase | A plausibility | B plausibility")
+    for case in cases:
+        a, b = results[(case, "A")], results[(case, "B")]
+        if a and b:
+            print(f"{case} | {plausibility(a[0])} | {plausibility(b[0])}")
     if failed:
         print("ab: some runs failed")
         return 1
