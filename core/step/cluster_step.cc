@@ -57,6 +57,7 @@ void StepParams::validate() const {
 
 ClusterStepper::ClusterStepper(const HandModel& model, StepParams params)
     : model_(model), params_(params), exact_(params.exact), pgs_(params.pgs), projector_(model, params_) {
+  exact_.setTree(params_.tree_solver);
   params_.validate();
   params_.rows.dt = params_.dt;
   require(!model.bodies.empty(), "the model has no bodies");
@@ -467,7 +468,9 @@ int ClusterStepper::project(const StepInput& in, bool allow_pull, const std::vec
 }
 
 JointProjector::JointProjector(const HandModel& model, const StepParams& params)
-    : model_(model), params_(params), exact_(params.exact) {}
+    : model_(model), params_(params), exact_(params.exact) {
+  exact_.setTree(params_.tree_solver);
+}
 
 void JointProjector::reserve(int rows) {
   const int n = static_cast<int>(model_.bodies.size());

@@ -32,6 +32,7 @@
 
 #include "model/hand_model.h"
 #include "solver/active_set.h"
+#include "solver/tree_solver.h"
 #include "solver/pgs.h"
 #include "step/constraints.h"
 
@@ -46,6 +47,10 @@ struct StepParams {
   SolverKind solver = SolverKind::Exact;
   bool warm_start = true;           ///< start from last step's active set (exact) or λ (PGS)
   ActiveSetSettings exact;
+  /// The exact solver in the joints' coordinates where the problem is a tree of joints
+  /// (TreeSolver, falling back to ActiveSetSolver); false: ActiveSetSolver always (the same
+  /// solution to round-off, slower; for comparisons).
+  bool tree_solver = true;
   PgsSettings pgs;
   int projection_iterations = 8;    ///< cap; 0 disables the projection (it stops when converged)
   /// Motion clamp (m, rad; +inf = off): the coupling asks no body to move or turn further per
@@ -129,7 +134,7 @@ class JointProjector {
   StepParams params_;
   QpProblem proj_;
   QpSolution proj_sol_;
-  ActiveSetSolver exact_;
+  ExactSolver exact_;
   std::vector<unsigned char> warm_;  // the last iteration's active rows (the next one's warm start)
   std::vector<JointFrame> frames_;   // the joints at the current poses: errors and rows from one evaluation
 };
@@ -242,7 +247,7 @@ class ClusterStepper {
   std::vector<unsigned char> has_last_target_;
   QpProblem qp_;
   QpSolution sol_;
-  ActiveSetSolver exact_;
+  ExactSolver exact_;
   PgsSolver pgs_;
   JointProjector projector_;
   std::vector<int> contact_row_;       // contact i -> row index or -1

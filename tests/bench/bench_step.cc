@@ -1,5 +1,5 @@
-// One 16-body hand step against the number of contact rows, exact vs PGS (measured, not
-// asserted). Every body rests on its own horizontal support (a stepped table whose step heights
+// One 16-body hand step against the number of contact rows, exact (TreeSolver, and without it:
+// `exact_general`) vs PGS (measured, not asserted). Every body rests on its own horizontal support (a stepped table whose step heights
 // are the bodies' rest undersides, so that all 16 bodies touch at once); the tracked hand
 // presses 5 mm into it and slides in a circle. N contacts are spread over the 16 bodies (points
 // along each body's underside, exact signed distances to its support), regenerated every step
@@ -44,7 +44,8 @@ Vec3 underside(const Body& b, const Pose& X, double s, double t) {
 }
 
 struct Scenario {
-  Scenario(SolverKind kind, bool warm, int contacts) : params(makeParams(kind, warm)), stepper(hand(), params), n(contacts) {
+  Scenario(SolverKind kind, bool warm, int contacts, bool tree = true)
+      : params(makeParams(kind, warm, tree)), stepper(hand(), params), n(contacts) {
     start = hand().restPoses(Pose{});
     for (size_t b = 0; b < start.size(); ++b) support.push_back(underside(hand().bodies[b], start[b], 0, 0).z());
     stepper.reset(start);
@@ -52,10 +53,11 @@ struct Scenario {
     targets = start;
     contacts_buf.resize(static_cast<size_t>(contacts));
   }
-  static StepParams makeParams(SolverKind kind, bool warm) {
+  static StepParams makeParams(SolverKind kind, bool warm, bool tree) {
     StepParams p;
     p.solver = kind;
     p.warm_start = warm;
+    p.tree_solver = tree;
     p.pgs.sweeps = 30;
     return p;
   }
@@ -88,8 +90,8 @@ struct Scenario {
   std::vector<Contact> contacts_buf;
 };
 
-void BM_HandStep(benchmark::State& state, SolverKind kind, bool warm) {
-  Scenario sc(kind, warm, static_cast<int>(state.range(0)));
+void BM_HandStep(benchmark::State& state, SolverKind kind, bool warm, bool tree = true) {
+  Scenario sc(kind, warm, static_cast<int>(state.range(0)), tree);
   int frame = 0;
   for (int i = 0; i < 50; ++i) {  // warm up into steady contact
     sc.update(frame++);
@@ -127,6 +129,8 @@ void contactCounts(benchmark::internal::Benchmark* b) {
 }  // namespace
 
 BENCHMARK_CAPTURE(BM_HandStep, exact, godhand::SolverKind::Exact, true)->Apply(contactCounts);
+// The same exact solution without TreeSolver (ActiveSetSolver on every problem): before and after.
+BENCHMARK_CAPTURE(BM_HandStep, exact_general, godhand::SolverKind::Exact, true, false)->Apply(contactCounts);
 BENCHMARK_CAPTURE(BM_HandStep, pgs, godhand::SolverKind::Pgs, true)->Apply(contactCounts);
 BENCHMARK_CAPTURE(BM_HandStep, exact_cold, godhand::SolverKind::Exact, false)->Apply(contactCounts);
 BENCHMARK_CAPTURE(BM_HandStep, pgs_cold, godhand::SolverKind::Pgs, false)->Apply(contactCounts);

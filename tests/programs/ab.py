@@ -35,15 +35,16 @@ CASES = {
 }
 
 
-def fail(message):
-    print(f"ab.py: {message}", file=sys.stderr)
+def fail(message, program="ab.py"):
+    print(f"{program}: {message}", file=sys.stderr)
     sys.exit(2)
 
 
-def bench_path(arg):
+def bench_path(arg, program="ab.py"):
+    """godhand-bench itself or the directory holding it (a one-line error, exit 2, otherwise)."""
     path = os.path.join(arg, "godhand-bench") if os.path.isdir(arg) else arg
     if not (os.path.isfile(path) and os.access(path, os.X_OK)):
-        fail(f"{arg}: no executable godhand-bench there")
+        fail(f"{arg}: no executable godhand-bench there", program)
     return path
 
 

@@ -33,9 +33,9 @@ import subprocess
 import sys
 import tempfile
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-DEPLOY = os.path.normpath(os.path.join(HERE, "..", "..", "deploy"))
-REC = os.path.join(DEPLOY, "recordings")
+import ab  # (this directory) the bench paths and the one-line errors
+from ab import DEPLOY, HERE, REC
+
 RECORDINGS = ["pinch", "HandSplay-110fps", "confidence2-49fps"]
 SIZES = ["0.15", "0.3"]
 TILTS = ["0,0,0,0,0,0"] + [f"0,0,0,{x},{y},0" for a in (15, -15, 30, -30) for (x, y) in ((a, 0), (0, a))]
@@ -43,15 +43,11 @@ LAG_MOVED = 2e-3  # m: a run's lag p95 "moved" by more than this
 
 
 def fail(message):
-    print(f"plausibility_ab.py: {message}", file=sys.stderr)
-    sys.exit(2)
+    ab.fail(message, "plausibility_ab.py")
 
 
 def bench_path(arg):
-    path = os.path.join(arg, "godhand-bench") if os.path.isdir(arg) else arg
-    if not (os.path.isfile(path) and os.access(path, os.X_OK)):
-        fail(f"{arg}: no executable godhand-bench there")
-    return path
+    return ab.bench_path(arg, "plausibility_ab.py")
 
 
 # --- generated meshes (OBJ) ----------------------------------------------------------------------
