@@ -115,7 +115,10 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
   c.pushout_restored = scene_stage_->counters().pushout_restored;
   c.lifted_starts = c.solver_failures = c.inexact_solves = c.rounds_shortened = c.rounds_kept = c.reacquisitions = c.reversed_rounds = c.hit_resolves = c.resolves_undone = 0;
   c.sweeps = c.sweep_iterations = c.sweeps_capped = c.per_body_clips = c.uniform_clips = c.sweeps_certified = c.held_rounds = 0;
+  c.qp_tree = c.qp_general = 0;
   for (const auto& s : solvers_) {
+    c.qp_tree += s->stepper().qpTreeSolves();
+    c.qp_general += s->stepper().qpGeneralSolves();
     c.per_body_clips += s->counters().per_body_clips;
     c.uniform_clips += s->counters().uniform_clips;
     c.sweeps_certified += s->counters().sweeps_certified;

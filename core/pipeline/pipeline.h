@@ -77,6 +77,9 @@ struct PipelineCounters {
   std::uint64_t reacquisitions = 0;                    ///< the solvers' (SolverCounters)
   std::uint64_t reversed_rounds = 0;                   ///< the solvers' (SolverCounters)
   std::uint64_t hit_resolves = 0, resolves_undone = 0;  ///< the solvers' (SolverCounters)
+  /// The hand solvers' QPs (Gauss steps and projections) answered in the joints' coordinates
+  /// (TreeSolver) and by the general solver (ActiveSetSolver: not a tree, or degenerate).
+  std::uint64_t qp_tree = 0, qp_general = 0;
 };
 
 class Pipeline {

@@ -128,6 +128,8 @@ class JointProjector {
   };
   /// Projects the poses X (one per body) in place.
   Result project(std::vector<Pose>& X, const Input& in);
+  /// Its QP solver (which of TreeSolver and ActiveSetSolver answered, counted).
+  const ExactSolver& solver() const { return exact_; }
 
  private:
   const HandModel& model_;
@@ -228,6 +230,9 @@ class ClusterStepper {
   const HandModel& model() const { return model_; }
   const StepParams& params() const { return params_; }
   const StepCounters& counters() const { return counters_; }
+  /// QPs (the Gauss steps' and the projection's) answered by TreeSolver, and by ActiveSetSolver.
+  std::uint64_t qpTreeSolves() const { return exact_.treeSolves() + projector_.solver().treeSolves(); }
+  std::uint64_t qpGeneralSolves() const { return exact_.generalSolves() + projector_.solver().generalSolves(); }
   const StepReport& lastReport() const { return report_; }
   /// Multiplier (N, along the contact normal on the God object) of contact i of the last step.
   double contactLambda(int i) const { return lambda_contacts_[static_cast<size_t>(i)]; }

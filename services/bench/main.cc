@@ -606,10 +606,11 @@ int main(int argc, char** argv) {
               margin * 1e3, all.joint_gap_max_m);
   for (const HandSummary& hs : sum.hands) std::printf("  %s\n", describe(hs).c_str());
   std::printf("  clipped %llu hand-frames (TOC < 1e-3 in %llu), solve -> sweep rounds %llu (max %llu in a frame); "
-              "contacts max %d, KKT max %.1e, solver failures %llu, inexact solves %llu, lifted starts %llu, re-acquisitions after a loss %llu, scene push-outs %llu (%llu objects left squeezed, put back)\n",
+              "contacts max %d, KKT max %.1e, solver failures %llu, inexact solves %llu, QPs in the joints' coordinates %llu of %llu (the rest by the general solver), lifted starts %llu, re-acquisitions after a loss %llu, scene push-outs %llu (%llu objects left squeezed, put back)\n",
               static_cast<unsigned long long>(all.clipped_frames), static_cast<unsigned long long>(all.toc_below_1e3),
               static_cast<unsigned long long>(all.substeps), static_cast<unsigned long long>(all.substeps_max), contacts_max,
               kkt_max, static_cast<unsigned long long>(c.solver_failures), static_cast<unsigned long long>(c.inexact_solves),
+              static_cast<unsigned long long>(c.qp_tree), static_cast<unsigned long long>(c.qp_tree + c.qp_general),
               static_cast<unsigned long long>(c.lifted_starts), static_cast<unsigned long long>(c.reacquisitions),
               static_cast<unsigned long long>(c.scene_pushouts),
               static_cast<unsigned long long>(c.pushout_restored));
@@ -690,6 +691,8 @@ int main(int argc, char** argv) {
     j["kkt_residual_max"] = kkt_max;
     j["solver_failures"] = c.solver_failures;
     j["inexact_solves"] = c.inexact_solves;
+    j["qp_tree_solves"] = c.qp_tree;
+    j["qp_general_solves"] = c.qp_general;
     j["rounds_shortened"] = c.rounds_shortened;
     j["rounds_kept"] = c.rounds_kept;
     j["clipped_steps"] = c.clipped_steps;
