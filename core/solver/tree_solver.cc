@@ -9,7 +9,6 @@ namespace godhand {
 namespace {
 
 constexpr double kTiny = 1e-300;
-constexpr double kNoise = 64.0 * std::numeric_limits<double>::epsilon();  // round-off floor of a slack
 /// A child block J_C whose smallest R pivot is below this fraction of its largest is rank
 /// deficient: the group's rows do not fix r directions of the child (not this solver's problem).
 constexpr double kRankFloor = 1e-10;
@@ -18,9 +17,6 @@ constexpr double kRankFloor = 1e-10;
 constexpr int kMaxCols = 16;
 /// Inequality rows above which the general solver is faster (see structure()).
 constexpr int kMaxRows = 128;
-using ColBlock = Eigen::Matrix<double, 6, Eigen::Dynamic, 0, 6, kMaxCols>;
-using SmallMat = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxCols, kMaxCols>;
-using SmallVec = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxCols, 1>;
 
 /// In-place Cholesky of the leading n × n block of a (column-major, leading dimension ld):
 /// lower triangle L with L Lᵀ = a. false where a pivot is not positive.
@@ -417,7 +413,6 @@ bool TreeSolver::solve(const QpProblem& p, QpSolution& sol, const unsigned char*
   have_h_.assign(static_cast<size_t>(mi), 0);
   y0_ = -g_;
   lowerSolve(y0_.data());
-  u0norm_ = y0_.cwiseAbs();  // |u0| (L⁻¹ g), for the round-off floor
   upperSolve(y0_.data());
   for (int i = 0; i < mi; ++i) b_[static_cast<size_t>(i)] = d_[static_cast<size_t>(i)] - A_.col(i).head(k).dot(y0_);
   // e_i = L⁻¹ a_i (|e_i|² = A_ii, the entering score's scale) for the rows found violated, and

@@ -3,14 +3,16 @@
 //
 // Each joint's equality rows J_C z_C + J_P z_P = c (r of them, on the child C and its parent P)
 // give the child's motion from its parent's and the joint's free motions:
-//   z_C = J_C⁺ (c − J_P z_P) + B_j y_j,   B_j an orthonormal basis of the null space of J_C,
+//   z_C = P_j (c − J_P z_P) + B_j y_j,   P_j a particular solution's map (J_C P_j = I),
+//   B_j an orthonormal basis of the null space of J_C,
 // so every motion that meets the equality rows is z = N y + z_p, y the roots' six coordinates and
 // each joint's 6 − r free ones (a 16-body hand: 26 instead of 96 unknowns and ~70 equality rows).
 // The problem left is small and dense:
 //   min ½ yᵀ H y + gᵀ y  subject to  a_iᵀ y ≥ d_i   (H = Nᵀ M N, g = Nᵀ M (z_p − z_u)),
-// and with H = L Lᵀ, u = Lᵀ y, a least-distance problem whose dual is solved by the same
-// Lawson–Hanson active-set scheme as ActiveSetSolver (most violated row enters, multipliers that
-// would turn negative leave), on the inequality rows only. The equality multipliers are recovered
+// whose dual over the inequality rows, A_ij = a_iᵀ H⁻¹ a_j (H = L Lᵀ factored once), is solved by
+// the same Lawson–Hanson active-set scheme as ActiveSetSolver (most violated row enters,
+// multipliers that would turn negative leave). A row's slack is a_i·y − d_i, checked against
+// the tolerance times its round-off scale |c_i| + |J_i|·|z_p| + |a_i|·|y|. The equality multipliers are recovered
 // afterwards from stationarity, leaves first (each joint's r multipliers from its child's force
 // balance), so the solution is the same (z, λ) as ActiveSetSolver's, to round-off, and its KKT
 // residual is measured the same way (kktResidual on the full problem).
@@ -47,8 +49,8 @@ class TreeSolver {
  private:
   struct Group {           // one joint's equality rows
     int child = -1, parent = -1, first = 0, rows = 0;
-    Mat6 T = Mat6::Zero();  // z_C = T z_P + q + B y_j, T = −J_C⁺ J_P
-    Vec6 q = Vec6::Zero();  // J_C⁺ c
+    Mat6 T = Mat6::Zero();  // z_C = T z_P + q + B y_j, T = −P_j J_P
+    Vec6 q = Vec6::Zero();  // P_j c
     Mat3 S = Mat3::Zero();  // the point rows' angular part
     Mat3 L = Mat3::Zero();  // the lock rows' (rows − 3 of them) angular part
     Mat3 G = Mat3::Zero();  // (L Lᵀ)⁻¹
@@ -76,9 +78,9 @@ class TreeSolver {
   std::vector<int> nz_start_, nz_row_;      // L's nonzeros below the diagonal, by column
   std::vector<double> nz_val_;
   Eigen::MatrixXd A_, Hh_;                  // k × m_I: columns a_i and h_i = H⁻¹ a_i (first L⁻¹ a_i)
-  Eigen::VectorXd g_, y0_, u0norm_, y_, absy_;
+  Eigen::VectorXd g_, y0_, y_, absy_;      // g; y0 = −H⁻¹ g; y; |y|
   std::vector<int> ineq_;                   // inequality row indices (their columns in A_, Hh_)
-  std::vector<double> d_, b_, scale0_, enorm2_;      // per inequality: d_i, b_i = d_i − e_i·u0, round-off scale
+  std::vector<double> d_, b_, scale0_, enorm2_;  // per inequality: d_i, b_i = d_i − a_i·y0, round-off scale, A_ii
   std::vector<int> passive_;                // positions into ineq_
   std::vector<double> lambda_, s_;          // per passive entry
   std::vector<unsigned char> in_passive_, blocked_, have_e_, have_h_;
@@ -90,7 +92,7 @@ class TreeSolver {
 
 /// The exact solver of the pipeline: TreeSolver where the problem is a forest of joints and it
 /// converges, ActiveSetSolver (the general one) otherwise. Both give the same solution to
-/// round-off; `tree_solves()` / `general_solves()` count which one answered.
+/// round-off; treeSolves() / generalSolves() count which one answered.
 class ExactSolver {
  public:
   explicit ExactSolver(ActiveSetSettings settings = {}) : tree_(settings), general_(settings) {}
