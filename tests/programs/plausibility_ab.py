@@ -8,8 +8,8 @@ A and B are godhand-bench binaries or directories holding one. Nothing is timed 
 are deterministic), so the runs go --jobs at a time (default 2).
 
 Meshes: the three bundled recordings x seven meshes (five generated here: a bar, a cube, an
-icosphere, a plate and a rod; the bundled fandisk and bunny) x two sizes (0.15 and 0.3 m): 42 runs
-a side. Per run the bench's own JSON (core/pipeline/run_metrics: nothing is recomputed here):
+icosphere, a plate and a rod; the bundled fandisk and bunny) x two sizes (0.15 and 0.3 m; --sizes): 42
+runs a side. Per run the bench's own JSON (core/pipeline/run_metrics: nothing is recomputed here):
 penetration, joint gap, solve -> sweep rounds, jitter, frozen windows, stuck frames and the
 excess lag p95 of each hand. The summary gives each side's totals and every run whose lag p95
 moved by more than 2 mm, whose frozen windows or stuck frames grew, or whose penetration went
@@ -171,6 +171,8 @@ def main():
     ap.add_argument("--frames", type=int, default=0, help="mesh runs: only the first N frames of each recording")
     ap.add_argument("--no-meshes", action="store_true", help="skip the 42 mesh runs")
     ap.add_argument("--no-tables", action="store_true", help="skip the 27 tilted tables")
+    ap.add_argument("--sizes", default=",".join(SIZES),
+                    help="mesh runs: the meshes' sizes, m, comma-separated (default %(default)s)")
     ap.add_argument("--recording", action="append", choices=RECORDINGS, help="only these recordings (repeatable)")
     ap.add_argument("--check-no-worse", action="store_true",
                     help="exit 1 when B fails more tables or has more frozen windows, stuck frames or runs above the margin")
@@ -181,13 +183,23 @@ def main():
         fail("--frames must be >= 0")
     benches = {"A": bench_path(args.a), "B": bench_path(args.b)}
     recordings = args.recording or RECORDINGS
+    sizes = [x.strip() for x in args.sizes.split(",") if x.strip()]
+    for x in sizes:
+        try:
+            ok = math.isfinite(float(x)) and float(x) > 0.0
+        except ValueError:
+            ok = False
+        if not ok:
+            fail(f"--sizes: '{x}' is not a size in metres (> 0)")
+    if not sizes:
+        fail("--sizes: no size given")
     failed = False
     worse = []
     with tempfile.TemporaryDirectory(prefix="godhand-plaus-ab-") as tmp, \
             concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
         if not args.no_meshes:
             paths = meshes(tmp)
-            keys = [(r, m, s) for r in recordings for m in paths for s in SIZES]
+            keys = [(r, m, s) for r in recordings for m in paths for s in sizes]
             futures = {(k, side): pool.submit(mesh_run, bench, k[0], paths[k[1]], k[2], args.frames, tmp)
                        for k in keys for side, bench in benches.items()}
             totals = {side: {"rounds": 0, "jitter": 0, "frozen": 0, "moving": 0, "stuck": 0, "above": 0, "pen": 0.0, "gap": 0.0}
