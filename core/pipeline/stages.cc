@@ -558,8 +558,10 @@ bool HandSolver::reversedRound(bool* have_last) {
   if (reversed) {
     ++counters_.reversed_rounds;
     rotation_trust_ = std::max(kMinRotationTrust, 0.5 * rotation_trust_);
-  } else {
+  } else if (now2 > kReversalFloor * kReversalFloor) {
     rotation_trust_ = std::min(1.0, kRotationTrustGrowth * rotation_trust_);
+  } else {
+    rotation_trust_ = std::min(1.0, kStillTrustGrowth * rotation_trust_);
   }
   return reversed;
 }

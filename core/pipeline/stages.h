@@ -286,6 +286,8 @@ class HandSolver {
   const ClusterStepper& stepper() const { return *stepper_; }
   const std::vector<Contact>& contacts() const { return contacts_; }
   const SolverCounters& counters() const { return counters_; }
+  /// The rotation trust the next round's motion clamp gets (StepInput::rotation_trust).
+  double rotationTrust() const { return rotation_trust_; }
   const CollisionWorld& collision() const { return collision_; }
   /// Adds every object's God-side cost (CollisionWorld::costs) of this solver's collision worlds
   /// (the caller's and each body thread's) to `sum` (one entry per scene object).
@@ -324,7 +326,8 @@ class HandSolver {
   /// Whether the round just taken (round_start_ -> the stepper's poses) turned back against the
   /// round before it (*have_last: one was taken, in this frame or as the last one's last round, since the
   /// hand started or was last tracked; set here); counted, and the rotation trust halved (else
-  /// grown by kRotationTrustGrowth, up to 1).
+  /// grown by kRotationTrustGrowth, or doubled after a round that moved less than kReversalFloor,
+  /// up to 1).
   bool reversedRound(bool* have_last);
   /// m: the most any body with a valid target came closer to it from X0 to X1, counting |Δp| +
   /// bounding radius × angle (0 when none did).
@@ -352,14 +355,17 @@ class HandSolver {
   // there, turns it back: rows linear in the rotation overshoot. Seen on pinch + bunny: the palm
   // rocked 0.06 rad every round, the fingertips 1-3 mm apart from frame to frame (50 % of the
   // body-frames turned back), three clipped rounds a frame. Halving the rotation allowed on each
-  // round that turns back (and growing it back by 25 % per round that does not) lets the hand
+  // round that turns back (and growing it back by 10 % per round that does not) lets the hand
   // settle; only the rotation: scaling the translation too slowed sliding (excess lag p95 on the
-  // two-hand bunny case 58 -> 86 mm). Grown back by 10 % a round, the trust stayed near its floor
-  // for tens of frames under a hand pressed towards targets far inside an object, and the hand
-  // froze (pinch on the bunny at 0.2 m: 15 of 166 windows; 6 at 25 %, 6 at 50 %).
+  // two-hand bunny case 58 -> 86 mm). A round that moves the hand less than the reversal floor
+  // (no turn it takes could count as one) doubles the trust instead: a damping cannot hold a hand
+  // still. Growing back by 10 % there too, the trust stayed near its floor for tens of frames under
+  // a hand pressed towards targets far inside an object after a burst of reversals, and the hand
+  // froze (pinch on the bunny at 0.2 and 0.25 m: 15 and 27 of 166 windows; now 6 and 0).
   double rotation_trust_ = 1.0;
   static constexpr double kMinRotationTrust = 1.0 / 32;
-  static constexpr double kRotationTrustGrowth = 1.25;
+  static constexpr double kRotationTrustGrowth = 1.1;
+  static constexpr double kStillTrustGrowth = 2.0;  ///< after a round that moved less than the floor
   static constexpr double kReversalCos = -0.5;     ///< a turn of more than 120°
   static constexpr double kReversalFloor = 1e-4;   ///< m: rounds moving less are no evidence
 
