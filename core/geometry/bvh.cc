@@ -23,6 +23,10 @@ constexpr double kWindingBeta = 2.0;  ///< Barill et al. 2018 accuracy parameter
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kTieSlack = 1e-12;  ///< closest(): pruning slack per metre of coordinates (round-off)
 constexpr double kMinShrink = 1e-9;  ///< m: least margin of a triangle in advancementStep
+/// advancementStep refines a node's first-order bound (second-order and body-axis, as for a
+/// triangle) only where the turn is more than this share of its approach rate: the refinements
+/// remove (part of) the turn's term, and where it is small they cost more than they prune.
+constexpr double kTurnShare = 0.25;
 
 double surfaceArea(const Aabb& b) {
   if (b.empty()) return 0.0;
@@ -101,11 +105,12 @@ double secondOrderTime(double margin, const Vec3& w, const Vec3& dp, const Vec3&
 ///   at t = 0 it is B_i = w·dp + θ·(r_i0 × w); |a(t) − w| ≤ t|θ| and |r_i(t) − r_i0| ≤ t|dp| bound
 ///   its change by t|θ|(2|dp| + |θ||r_i0|) = A_i t. So s_i falls by at most B_i t + A_i t²/2.
 /// `floor`: the least margin (as visitTriangle's).
-double bodyAxisTime(const std::array<Vec3, 3>& v, const Vec3& p0, const Vec3& w, double support, double reach,
+double bodyAxisTime(const Vec3* v, int n, const Vec3& p0, const Vec3& w, double support, double reach,
                     const Vec3& dp, const Vec3& theta, double floor) {
   const double th = theta.norm(), dpn = dp.norm();
   double t_min = std::numeric_limits<double>::infinity();
-  for (const Vec3& vi : v) {
+  for (int k = 0; k < n; ++k) {
+    const Vec3& vi = v[k];
     const Vec3 r = vi - p0;
     const double m = std::max(w.dot(r) - support - reach, floor);
     const double B = w.dot(dp) + theta.dot(r.cross(w));
@@ -241,6 +246,7 @@ inline Lanes labs(Lanes a) { return {_mm_andnot_pd(_mm_set1_pd(-0.0), a.v)}; }
 inline Lanes lsqrt(Lanes a) { return {_mm_sqrt_pd(a.v)}; }
 inline double lane0(Lanes a) { return _mm_cvtsd_f64(a.v); }
 inline double lane1(Lanes a) { return _mm_cvtsd_f64(_mm_unpackhi_pd(a.v, a.v)); }
+inline double lane0or1(Lanes a, int k) { return k == 0 ? lane0(a) : lane1(a); }
 
 /// A 3-vector per lane.
 struct Lanes3 {
@@ -626,6 +632,23 @@ struct MeshBvh::Impl {
     Vec3 best_core_B, best_tri_B;
     std::array<Vec3, 3> best_abc_B;
     double best_d = 0.0;
+    // A node's first-order bound t along u (separation margin > 0 beyond r + η) raised by the
+    // second-order and body-axis bounds, as for a triangle: both hold for any convex set along a
+    // fixed direction (the body-axis one over the box's eight corners), so a turning body's
+    // receding end prunes whole subtrees, not only their triangles one by one.
+    auto refineNode = [&](int index, const Vec3& u, double margin, double t) {
+      if (n_axes > 0) t = std::max(t, secondOrderTime(margin, u, dp_M, theta_M, axes, halves, n_axes, horizon));
+      if (t < best && theta_M.squaredNorm() > 0.0) {
+        const Aabb& b = bvh.nodes_[static_cast<size_t>(index)].box;
+        Vec3 corners[8];
+        for (int c = 0; c < 8; ++c)
+          corners[c] = Vec3((c & 1) ? b.hi.x() : b.lo.x(), (c & 2) ? b.hi.y() : b.lo.y(), (c & 4) ? b.hi.z() : b.lo.z());
+        double support = 0.0;
+        for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(u.dot(axes[j]));
+        t = std::max(t, bodyAxisTime(corners, 8, X_MB.p, u, support, r + eta, dp_M, theta_M, 0.0));
+      }
+      return t;
+    };
     // Exact time bound of one triangle (corners in M); updates the best.
     auto visitTriangle = [&](int i, const std::array<Vec3, 3>& v) {
       const std::array<Vec3, 3> abc_B = {R_BM * (v[0] - X_MB.p), R_BM * (v[1] - X_MB.p), R_BM * (v[2] - X_MB.p)};
@@ -649,7 +672,7 @@ struct MeshBvh::Impl {
         if (t_i < best && theta_M.squaredNorm() > 0.0) {
           double support = 0.0;
           for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(w_M.dot(axes[j]));
-          t_i = std::max(t_i, bodyAxisTime(v, X_MB.p, w_M, support, r + eta, dp_M, theta_M, kMinShrink));
+          t_i = std::max(t_i, bodyAxisTime(v.data(), 3, X_MB.p, w_M, support, r + eta, dp_M, theta_M, kMinShrink));
         }
       }
       if (t_i < best) {
@@ -694,7 +717,7 @@ struct MeshBvh::Impl {
               if (t_u < best && margin > 0.0 && theta_M.squaredNorm() > 0.0) {
                 double support = 0.0;
                 for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(u.dot(axes[j]));
-                t_u = std::max(t_u, bodyAxisTime(v, X_MB.p, u, support, r + eta, dp_M, theta_M, 0.0));
+                t_u = std::max(t_u, bodyAxisTime(v.data(), 3, X_MB.p, u, support, r + eta, dp_M, theta_M, 0.0));
               }
               if (t_u >= best) continue;
             }
@@ -724,21 +747,43 @@ struct MeshBvh::Impl {
           const Lanes cx = u.y * splat(theta_M.z()) - u.z * splat(theta_M.y());
           const Lanes cy = u.z * splat(theta_M.x()) - u.x * splat(theta_M.z());
           const Lanes cz = u.x * splat(theta_M.y()) - u.y * splat(theta_M.x());
-          const Lanes rate = dot(u, dp_M) + splat(rho_c) * lsqrt(cx * cx + cy * cy + cz * cz);
+          const Lanes turn = splat(rho_c) * lsqrt(cx * cx + cy * cy + cz * cz);
+          const Lanes rate = dot(u, dp_M) + turn;
           const Lanes q = margin / rate;
           const double fs[2] = {lane0(f), lane1(f)}, ms[2] = {lane0(margin), lane1(margin)};
           const double rs[2] = {lane0(rate), lane1(rate)}, qs[2] = {lane0(q), lane1(q)};
+          const double ts[2] = {lane0(turn), lane1(turn)};
           for (int k = 0; k < 2; ++k) {
             if (t[k] >= best || fs[k] <= 0.0 || ms[k] <= 0.0) continue;
             t[k] = std::max(t[k], rs[k] > 0.0 ? qs[k] : std::numeric_limits<double>::infinity());
+            if (t[k] < best && ts[k] > kTurnShare * rs[k])
+              t[k] = refineNode(k == 0 ? node.first : node.right, Vec3(lane0or1(u.x, k), lane0or1(u.y, k), lane0or1(u.z, k)), ms[k], t[k]);
           }
         }
         t_left = t[0];
         t_right = t[1];
       }
 #else
-      const double t_left = boxTime(bvh.nodes_[static_cast<size_t>(node.first)].box, best);
-      const double t_right = boxTime(bvh.nodes_[static_cast<size_t>(node.right)].box, best);
+      // The lanes' arithmetic, one child at a time.
+      auto nodeTime = [&](int index) {
+        const Aabb& b = bvh.nodes_[static_cast<size_t>(index)].box;
+        const double margin_gap = core.gapBound(b) - r - eta;
+        double t = 0.0;
+        if (margin_gap > 0.0) t = mu_c > 0.0 ? margin_gap / mu_c : std::numeric_limits<double>::infinity();
+        if (t >= best) return t;
+        Vec3 u;
+        double sep;
+        if (core.centreBound(b, &u, &sep) <= 0.0) return t;
+        const double margin = sep - r - eta;
+        if (margin <= 0.0) return t;
+        const double turn = rho_c * u.cross(theta_M).norm();
+        const double rate = u.dot(dp_M) + turn;
+        t = std::max(t, rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity());
+        if (t < best && turn > kTurnShare * rate) t = refineNode(index, u, margin, t);
+        return t;
+      };
+      const double t_left = nodeTime(node.first);
+      const double t_right = nodeTime(node.right);
 #endif
       const bool left_first = t_left <= t_right;
       const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
