@@ -617,7 +617,14 @@ struct MeshBvh::Impl {
     };
     // Lower bound of the time before box b can come within η: the larger of the directional bound
     // along the first-order separating direction and the box-gap bound at the full speed μ_c.
-    auto boxTime = [&](const Aabb& b, double cutoff) {
+    // `along` (optional) gets that direction, the margin along it and the turn's share of the rate
+    // where the directional bound was taken (margin > 0), for refineNode.
+    struct Along {
+      Vec3 u = Vec3::Zero();
+      double margin = 0.0, turn = 0.0, rate = 0.0;
+      bool valid = false;
+    };
+    auto boxTime = [&](const Aabb& b, double cutoff, Along* along = nullptr) {
       const double margin_gap = core.gapBound(b) - r - eta;
       double t_gap = 0.0;
       if (margin_gap > 0.0) t_gap = mu_c > 0.0 ? margin_gap / mu_c : std::numeric_limits<double>::infinity();
@@ -625,7 +632,11 @@ struct MeshBvh::Impl {
       Vec3 u;
       double sep;
       if (core.centreBound(b, &u, &sep) <= 0.0) return t_gap;
-      return std::max(t_gap, timeBound(sep, u));
+      const double margin = sep - r - eta;
+      if (margin <= 0.0) return t_gap;
+      const double turn = rho_c * u.cross(theta_M).norm(), rate = u.dot(dp_M) + turn;
+      if (along) *along = Along{u, margin, turn, rate, true};
+      return std::max(t_gap, rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity());
     };
     double best = horizon;
     int best_index = std::numeric_limits<int>::min();  // none yet
@@ -766,20 +777,9 @@ struct MeshBvh::Impl {
 #else
       // The lanes' arithmetic, one child at a time.
       auto nodeTime = [&](int index) {
-        const Aabb& b = bvh.nodes_[static_cast<size_t>(index)].box;
-        const double margin_gap = core.gapBound(b) - r - eta;
-        double t = 0.0;
-        if (margin_gap > 0.0) t = mu_c > 0.0 ? margin_gap / mu_c : std::numeric_limits<double>::infinity();
-        if (t >= best) return t;
-        Vec3 u;
-        double sep;
-        if (core.centreBound(b, &u, &sep) <= 0.0) return t;
-        const double margin = sep - r - eta;
-        if (margin <= 0.0) return t;
-        const double turn = rho_c * u.cross(theta_M).norm();
-        const double rate = u.dot(dp_M) + turn;
-        t = std::max(t, rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity());
-        if (t < best && turn > kTurnShare * rate) t = refineNode(index, u, margin, t);
+        Along a;
+        double t = boxTime(bvh.nodes_[static_cast<size_t>(index)].box, best, &a);
+        if (a.valid && t < best && a.turn > kTurnShare * a.rate) t = refineNode(index, a.u, a.margin, t);
         return t;
       };
       const double t_left = nodeTime(node.first);
