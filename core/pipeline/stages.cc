@@ -179,10 +179,11 @@ void HandSolver::resume(const HandResult& result) {
 }
 
 bool HandSolver::freeStart(std::vector<Pose>* X, Vec3* shift) const {
-  // The hand is moved as one rigid translation. First out along the exit normal of its deepest
-  // overlap, repeatedly (a target a few mm inside a table starts a few mm above it, a target in
-  // a cavity starts at the nearest way out); if that does not settle, straight up in doubling
-  // steps from 1 cm.
+  // The hand is moved as one rigid translation: the shorter of two free ones. First out along the
+  // exit normal of its deepest overlap, repeatedly (a target a few mm inside a table starts a few
+  // mm above it, a target in a cavity starts at the nearest way out), up to kStartPushes times;
+  // then straight up, the lowest free height (a hand whose pushes do not settle, or settle farther
+  // away than that, e.g. one that wanders around a large object).
   const size_t n = model_.bodies.size();
   const double want = params_.start_clearance;
   *shift = Vec3::Zero();
@@ -204,11 +205,13 @@ bool HandSolver::freeStart(std::vector<Pose>* X, Vec3* shift) const {
     return need;
   };
   Vec3 offset = Vec3::Zero(), n_W = Vec3::UnitZ();
-  for (int it = 0; it < 16; ++it) {
+  bool pushed = false;
+  for (int it = 0; it < kStartPushes; ++it) {
     const double need = worst(offset, &n_W);
     if (need <= 0.0) {
-      *shift = offset;
-      return offset.norm() <= params_.max_start_shift;
+      if (it == 0) return true;  // free where it is
+      pushed = offset.norm() <= params_.max_start_shift;
+      break;
     }
     if (!n_W.allFinite() || n_W.norm() < 0.5) break;
     offset += n_W.normalized() * (need + 0.5 * want);
@@ -217,23 +220,29 @@ bool HandSolver::freeStart(std::vector<Pose>* X, Vec3* shift) const {
   // pinch hand on another side of the bunny, where it froze in 146 of 166 windows; not kept.)
   // The lowest free height is then narrowed down between the last occupied and the first free
   // one (to 1 mm): a hand whose targets sit in a large object starts just above it, not up to
-  // twice as high (seen: 16 cm above a hand that was free at 9 cm).
+  // twice as high (seen: 16 cm above a hand that was free at 9 cm). Heights at or above the
+  // pushes' distance are not searched: that one is kept.
+  const double limit = pushed ? offset.norm() : params_.max_start_shift;
   double occupied = 0.0;
-  for (double h = 0.01; h <= params_.max_start_shift; h *= 2.0) {
+  for (double h = 0.01; h < 2.0 * limit && occupied < limit; h *= 2.0) {
     Vec3 unused;
-    if (worst(Vec3(0, 0, h), &unused) > 0.0) {
-      occupied = h;
+    const double at = std::min(h, limit);
+    if (worst(Vec3(0, 0, at), &unused) > 0.0) {
+      occupied = at;
       continue;
     }
-    double free = h;
+    double free = at;
     while (free - occupied > 1e-3) {
       const double mid = 0.5 * (occupied + free);
       (worst(Vec3(0, 0, mid), &unused) <= 0.0 ? free : occupied) = mid;
     }
+    if (pushed && !(free < limit)) break;
     *shift = Vec3(0, 0, free);
     return true;
   }
-  return false;
+  if (!pushed) return false;
+  *shift = offset;
+  return true;
 }
 
 bool HandSolver::start(const HandInput& in) {

@@ -306,6 +306,10 @@ class HandSolver {
   /// (waking a thread costs more than a few certified bodies: the results are the same).
   template <class F>
   void forEachBody(const F& f, int busy);
+  /// freeStart's pushes along the exit normals at most (on the bundled recordings over the bunny
+  /// and the fandisk at 0.06-0.6 m they settled within 46; 16 left 7 of 48 starts lifted straight
+  /// up by 10-22 cm where a way out to the side was shorter).
+  static constexpr int kStartPushes = 64;
   static constexpr int kMinParallelBodies = 2;
   bool start(const HandInput& in);
   /// The nearest free rigid translation of the poses X (shift; zero when X is free already).
