@@ -311,6 +311,9 @@ class HandSolver {
   /// up by 10-22 cm where a way out to the side was shorter).
   static constexpr int kStartPushes = 64;
   static constexpr int kMinParallelBodies = 2;
+  /// Body b's contact queries take every triangle of the contact shell as a candidate: a box, or
+  /// a body whose last sweep hit.
+  bool shellFor(size_t b) const { return blocked_[b] || model_.bodies[b].shape.type == ShapeType::Box; }
   bool start(const HandInput& in);
   /// The nearest free rigid translation of the poses X (shift; zero when X is free already).
   bool freeStart(std::vector<Pose>* X, Vec3* shift) const;
