@@ -594,6 +594,49 @@ TEST(Plausibility, APhalanxOnACreaseDoesNotHoldTheHandStill) {
   for (double pen : {pen_on, pen_off, pen_cap, pen_res}) EXPECT_LE(pen, d.step.rows.margin);
 }
 
+// The first start of a recording's right hand in a scene, stepped frame by frame until it starts:
+// its targets there and where the start moved them (the pipeline's trace line; NaN: not moved).
+struct FirstStart {
+  std::vector<Pose> targets;
+  std::vector<unsigned char> has;
+  Vec3 shift = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+  bool started = false;
+  PipelineParams params;
+};
+FirstStart firstStart(const leap::Recording& rec, const HandModel& hand, const Scene& scene) {
+  FirstStart out;
+  leap::Retargeter rt(hand);
+  PipelineParams& p = out.params;
+  p.step.dt = 1.0 / rec.meanFrameRate();
+  p.simulate = false;
+  p.trace = 1;
+  p.trace_sink = [&out](const char* line) {
+    double x, y, z;
+    if (std::sscanf(line, "trace: start moved by (%lf, %lf, %lf)", &x, &y, &z) == 3) out.shift = Vec3(x, y, z);
+  };
+  Pipeline pipe(scene, {&hand}, p);
+  for (size_t k = 0; k < rec.frames().size() && !out.started; ++k)
+    for (const leap::TrackedHand& h : rec.frames()[k].hands)
+      if (h.right) {
+        rt.targets(h, &out.targets, &out.has);
+        out.started = pipe.step({HandInput{true, out.targets.data(), out.has.data()}}).hands[0].started;
+        break;
+      }
+  out.params.trace_sink = nullptr;  // (it refers to this function's `out`)
+  return out;
+}
+// The least clearance of the driven bodies at their first targets moved by `offset`.
+double startClearance(const FirstStart& s, const HandModel& hand, const CollisionWorld& world, const Vec3& offset) {
+  double least = std::numeric_limits<double>::infinity();
+  for (size_t b = 0; b < hand.bodies.size(); ++b) {
+    if (!s.has.empty() && !s.has[b]) continue;
+    Pose X = s.targets[b];
+    X.p += offset;
+    least = std::min(least, world.clearance(hand.bodies[b].shape, X, 0.05));
+  }
+  return least;
+}
+
 // A hand whose targets sit deep in a mesh starts just above the mesh, not up to twice as high:
 // where moving out along the exit normals does not settle, the start is lifted straight up to the
 // lowest free height (found to 1 mm between the last occupied and the first free doubling step).
@@ -604,47 +647,19 @@ TEST(Plausibility, AHandStartingInsideAMeshStartsJustAboveIt) {
   const leap::Recording rec = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/confidence2-49fps.json");
   const HandModel hand = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
   const Scene scene = loadScene(std::string(GODHAND_DEPLOY_DIR) + "/scenes/default.pbtxt");
-  leap::Retargeter rt(hand);
-  PipelineParams p;
-  p.step.dt = 1.0 / rec.meanFrameRate();
-  p.simulate = false;
-  p.trace = 1;
-  Vec3 shift = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
-  p.trace_sink = [&](const char* line) {
-    double x, y, z;
-    if (std::sscanf(line, "trace: start moved by (%lf, %lf, %lf)", &x, &y, &z) == 3) shift = Vec3(x, y, z);
-  };
-  Pipeline pipe(scene, {&hand}, p);
-  std::vector<Pose> targets;
-  std::vector<unsigned char> has;
-  for (size_t k = 0; k < rec.frames().size() && !(shift.allFinite()); ++k)
-    for (const leap::TrackedHand& h : rec.frames()[k].hands)
-      if (h.right) {
-        rt.targets(h, &targets, &has);
-        pipe.step({HandInput{true, targets.data(), has.data()}});
-        break;
-      }
+  const FirstStart s = firstStart(rec, hand, scene);
+  const Vec3& shift = s.shift;
   ASSERT_TRUE(shift.allFinite()) << "the right hand's start was not lifted: the test shows nothing";
   EXPECT_EQ(shift.x(), 0.0);
   EXPECT_EQ(shift.y(), 0.0);
   // Distances of the start pose lifted by h: the least over bodies and objects.
-  CollisionWorld world(scene);
-  auto clearance = [&](double h) {
-    double least = std::numeric_limits<double>::infinity();
-    for (size_t b = 0; b < hand.bodies.size(); ++b) {
-      const bool driven = has.empty() || has[b];
-      if (!driven) continue;
-      Pose X = targets[b];
-      X.p.z() += h;
-      least = std::min(least, world.clearance(hand.bodies[b].shape, X, 0.05));
-    }
-    return least;
-  };
-  const double at_start = clearance(shift.z()), below = clearance(shift.z() - 0.002);
+  const CollisionWorld world(scene);
+  const double at_start = startClearance(s, hand, world, Vec3(0, 0, shift.z()));
+  const double below = startClearance(s, hand, world, Vec3(0, 0, shift.z() - 0.002));
   std::printf("[figure] right hand lifted %.4f m to start; clearance there %.2e m, 2 mm lower %.2e m\n", shift.z(), at_start,
               below);
-  EXPECT_GE(at_start, p.start_clearance - 1e-9) << "the start is not free";
-  EXPECT_LT(below, p.start_clearance) << "2 mm lower was free too: the start is higher than it need be";
+  EXPECT_GE(at_start, s.params.start_clearance - 1e-9) << "the start is not free";
+  EXPECT_LT(below, s.params.start_clearance) << "2 mm lower was free too: the start is higher than it need be";
   EXPECT_LT(shift.z(), 0.12);
 }
 
@@ -668,45 +683,16 @@ TEST(Plausibility, AHandStartingInsideAMeshStartsAtTheNearerOfTheWayOutAndAbove)
   mean_palm /= palms;
   const Scene scene =
       meshScene({parseMeshSpec(std::string(GODHAND_DEPLOY_DIR) + "/meshes/stanford-bunny.obj:0.15")}, mean_palm, meshFileLoader());
-  leap::Retargeter rt(hand);
-  PipelineParams p;
-  p.step.dt = 1.0 / rec.meanFrameRate();
-  p.simulate = false;
-  p.trace = 1;
-  Vec3 shift = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
-  p.trace_sink = [&](const char* line) {
-    double x, y, z;
-    if (std::sscanf(line, "trace: start moved by (%lf, %lf, %lf)", &x, &y, &z) == 3) shift = Vec3(x, y, z);
-  };
-  Pipeline pipe(scene, {&hand}, p);
-  std::vector<Pose> targets;
-  std::vector<unsigned char> has;
-  bool started = false;
-  for (size_t k = 0; k < rec.frames().size() && !started; ++k)
-    for (const leap::TrackedHand& h : rec.frames()[k].hands)
-      if (h.right) {
-        rt.targets(h, &targets, &has);
-        started = pipe.step({HandInput{true, targets.data(), has.data()}}).hands[0].started;
-        break;
-      }
-  ASSERT_TRUE(started);
+  const FirstStart s = firstStart(rec, hand, scene);
+  ASSERT_TRUE(s.started);
+  const Vec3& shift = s.shift;
   ASSERT_TRUE(shift.allFinite()) << "the start was not moved: the test shows nothing";
-  CollisionWorld world(scene);
-  auto clearance = [&](const Vec3& offset) {
-    double least = std::numeric_limits<double>::infinity();
-    for (size_t b = 0; b < hand.bodies.size(); ++b) {
-      if (!has.empty() && !has[b]) continue;
-      Pose X = targets[b];
-      X.p += offset;
-      least = std::min(least, world.clearance(hand.bodies[b].shape, X, 0.05));
-    }
-    return least;
-  };
+  const CollisionWorld world(scene);
   double up = 0.0;
-  while (up < 0.5 && clearance(Vec3(0, 0, up)) < p.start_clearance) up += 1e-3;
+  while (up < 0.5 && startClearance(s, hand, world, Vec3(0, 0, up)) < s.params.start_clearance) up += 1e-3;
   std::printf("[figure] start moved by (%.4f, %.4f, %.4f) m, %.4f m; the lowest free height %.3f m\n", shift.x(), shift.y(),
               shift.z(), shift.norm(), up);
-  EXPECT_GE(clearance(shift), p.start_clearance - 1e-9) << "the start is not free";
+  EXPECT_GE(startClearance(s, hand, world, shift), s.params.start_clearance - 1e-9) << "the start is not free";
   EXPECT_GT(std::hypot(shift.x(), shift.y()), 0.01) << "lifted straight up although the way out to the side is shorter";
   EXPECT_LT(shift.norm(), up - 0.01);
 }
