@@ -18,8 +18,9 @@
 //             God hand never ends inside an object it did not move into.
 //
 // Start and re-acquisition (METHOD.md §2 step 7): a hand seen for the first time starts at its
-// target if that is free, else lifted straight up (+z, doubling from 1 cm) to the first free pose,
-// from which the normal steps (with CCD) bring it down to the surface. A hand that loses tracking
+// target if that is free, else moved as one translation by the shorter of two: out along the exit
+// normal of its deepest overlap, push after push (up to 64), and straight up (+z) to the lowest
+// free height; from there the normal steps (with CCD) bring it to the surface. A hand that loses tracking
 // is frozen where it is and reported untracked; when it is tracked again within
 // PipelineParams::reacquire_after it moves on from there, after a longer loss it starts again as
 // above; either way the motion from where it was is swept (the resolver sweeps a new start from
