@@ -114,8 +114,9 @@ TEST(Plausibility, BoxSlidesAndTurnsAboutATangentialAxisOnAPlane) {
 
 // A palm-sized box pressed onto a finely tessellated bumpy plate (bumps 0.4 mm high every 2 cm,
 // 2 mm triangles; target 5 mm below the plate, sliding and turning): the box rests on a few bump
-// tops at once and slides over them. Oracle: the plate's own height field (no point of the box's
-// bottom face, a 21 x 21 grid, goes below it) and the target (followed within 2 mm sideways).
+// tops at once and slides over them. Oracles: no vertex of the plate inside the box, the exact
+// reference penetration 0 every frame, and the target (followed within 2 mm sideways); the depth of
+// the box's bottom face below the smooth height field at a 21 x 21 grid is printed.
 // The rounds and the second solves after a hit are printed: most rounds here are solved twice
 // (the closest points of the box's parts find one bump; it tilts onto another), with or without
 // the 0.3 mm shell's triangles as candidates for a box (tried: no fewer).
@@ -154,11 +155,12 @@ TEST(Plausibility, APalmSlidesAndTurnsOverABumpyPlate) {
     plate.triangles.push_back({vid(0, k + 1), base + 3, base});
     plate.triangles.push_back({vid(0, k + 1), base, vid(0, k)});
   }
+  const std::vector<Vec3> plate_vertices = plate.vertices;
   Scene scene = sceneOf({meshObject("plate", std::move(plate), at(0, 0, 0))});
   const HandModel m = bodyModel("box { half_extents { x: 0.042 y: 0.047 z: 0.013 } }", 0.35);
   const Shape& s = m.bodies[0].shape;
   Pipeline pipe(scene, {&m}, params(1.0 / 100));
-  double below = 0.0, lag_late = 0.0;
+  double below = 0.0, lag_late = 0.0, worst_penetration = 0.0, vertex_inside = 0.0;
   std::uint64_t rounds = 0;
   for (int k = 0; k <= 120; ++k) {
     const Quat q(Eigen::AngleAxisd(0.004 * k, Vec3::UnitZ()));
@@ -171,13 +173,22 @@ TEST(Plausibility, APalmSlidesAndTurnsOverABumpyPlate) {
         const Vec3 p = X.p + Rb * Vec3(0.1 * i * s.half_extents.x(), 0.1 * j * s.half_extents.y(), -s.half_extents.z());
         below = std::max(below, height(p.x(), p.y()) - p.z());
       }
+    // Exact, two ways: the reference penetration, and every vertex of the plate against the box
+    // (a vertex inside the box is a penetration however the faces between them lie).
+    worst_penetration = std::max(worst_penetration, pipe.penetration(0));
+    for (const Vec3& v : plate_vertices) {
+      const Vec3 l = Rb.transpose() * (v - X.p);
+      const Vec3 in_by = s.half_extents - l.cwiseAbs();
+      if (in_by.minCoeff() > 0.0) vertex_inside = std::max(vertex_inside, in_by.minCoeff());
+    }
     if (k >= 30) lag_late = std::max(lag_late, std::hypot(X.p.x() - target.p.x(), X.p.y() - target.p.y()));
   }
   const PipelineCounters& c = pipe.counters();
-  std::printf("[figure] palm on a bumpy plate: %llu rounds, %llu solved again after a hit; deepest point below the plate "
-              "%.2e m; sideways distance to the target late %.4f m\n",
+  std::printf("[figure] palm on a bumpy plate: %llu rounds, %llu solved again after a hit; deepest sample below the smooth "
+              "surface %.2e m (the mesh is its 2 mm linear interpolation); sideways distance to the target late %.4f m\n",
               static_cast<unsigned long long>(rounds), static_cast<unsigned long long>(c.hit_resolves), below, lag_late);
-  EXPECT_LE(below, 1e-4) << "the box went into the plate";
+  EXPECT_EQ(worst_penetration, 0.0) << "the box went into the plate";
+  EXPECT_EQ(vertex_inside, 0.0) << "a vertex of the plate inside the box";
   EXPECT_LT(lag_late, 2e-3) << "the box does not follow its target along the plate";
 }
 
@@ -730,31 +741,38 @@ TEST(Plausibility, ExcessLagOfARestingSphereIsTheMargin) {
   EXPECT_TRUE(sum.failure.empty());
 }
 
-// A scene that encloses the tracking volume: the hand never starts, and the run says so.
+// A scene that encloses the tracking volume: the hand never starts, and the run says so. The
+// nearest way out of the solid box is 0.5 m (its top, straight up: 0.51 m with the clearance);
+// with max_start_shift 0.1 m nowhere is close enough, and with 1 m the hand starts outside.
 TEST(Plausibility, AHandThatNeverStartsIsAFailedRun) {
   Scene scene = sceneOf({meshObject("room", boxMesh(Vec3(0.5, 0.5, 0.5)), at(0, 0, 0))});
   const HandModel m = bodyModel("sphere { radius: 0.01 }");
-  const PipelineParams p = params(1.0 / 100);
-  Pipeline pipe(scene, {&m}, p);
-  RunMetrics metrics(scene, {&m}, {"probe"}, p);
-  const Pose target = at(0, 0, 0);  // deep inside the solid box: every start pose within 4 m is too
-  for (int k = 0; k < 5; ++k) {
-    const HandInput in{true, &target, nullptr};
-    pipe.step({in});
-    HandSample s;
-    s.started = pipe.started(0);
-    s.tracked = true;
-    s.X = s.started ? pipe.poses(0).data() : nullptr;
-    s.targets = &target;
-    metrics.add(0, s, in, pipe.resolver().collision());
-  }
-  const RunSummary sum = metrics.summary();
-  if (pipe.started(0)) {
-    // Started outside the box (the nearest exit is 0.5 m away): then it must be outside.
-    EXPECT_EQ(pipe.penetration(0), 0.0);
-    EXPECT_TRUE(sum.failure.empty());
-  } else {
-    EXPECT_NE(sum.failure.find("never started"), std::string::npos) << sum.failure;
+  for (const double shift : {0.1, 1.0}) {
+    PipelineParams p = params(1.0 / 100);
+    p.max_start_shift = shift;
+    Pipeline pipe(scene, {&m}, p);
+    RunMetrics metrics(scene, {&m}, {"probe"}, p);
+    const Pose target = at(0, 0, 0);  // at the centre of the solid box
+    for (int k = 0; k < 5; ++k) {
+      const HandInput in{true, &target, nullptr};
+      pipe.step({in});
+      HandSample s;
+      s.started = pipe.started(0);
+      s.tracked = true;
+      s.X = s.started ? pipe.poses(0).data() : nullptr;
+      s.targets = &target;
+      metrics.add(0, s, in, pipe.resolver().collision());
+    }
+    const RunSummary sum = metrics.summary();
+    if (shift < 0.5) {
+      EXPECT_FALSE(pipe.started(0)) << "no free pose within 0.1 m of a target 0.5 m deep";
+      EXPECT_NE(sum.failure.find("never started"), std::string::npos) << sum.failure;
+    } else {
+      ASSERT_TRUE(pipe.started(0)) << "a free pose 0.51 m away is within 1 m";
+      EXPECT_EQ(pipe.penetration(0), 0.0);
+      EXPECT_GE(pipe.poses(0)[0].p.norm(), 0.5 + 0.01) << "started outside the box";
+      EXPECT_EQ(sum.failure.find("never started"), std::string::npos) << sum.failure;
+    }
   }
 }
 

@@ -118,7 +118,6 @@ TEST(SceneRequires, FarObjectsCostNothingAndChangeNothing) {
   }
   EXPECT_GT(b.costs[0].queries, 0u) << "the table under the hand is queried";
   EXPECT_GT(b.costs[1].queries, 0u) << "the pushed box is queried";
-  EXPECT_GT(b.costs[1].us, 0.0);
   EXPECT_TRUE(b.box_slept) << "the box rested 3 s untouched: asleep";
   EXPECT_TRUE(b.box_woken) << "the push wakes it";
   EXPECT_GT(b.box_moved, 0.05) << "and moves it";
