@@ -215,7 +215,11 @@ TEST(Synthetic, GraspBoxTwoHandsCloseFromOppositeSides) {
   EXPECT_NEAR(l_max, -0.043, 1e-12);
   EXPECT_LT(r_min - 0.013, half_x);                        // targets inside the box: a squeeze
   EXPECT_NEAR(z_rise, 0.05, 1e-12);                        // the scripted lift
-  EXPECT_LT(box_centre.x() + half_x, 0.15);                // started clear of the box
+  // Started clear of the box: each palm's surface (0.013 from its centre) beyond the box's side.
+  const bridges::TrackedHand* r0 = bridges::handOfSide(a.frames[0], true);
+  const bridges::TrackedHand* l0 = bridges::handOfSide(a.frames[0], false);
+  EXPECT_GT(r0->X_W_palm.p.x() - 0.013, box_centre.x() + half_x);
+  EXPECT_LT(l0->X_W_palm.p.x() + 0.013, box_centre.x() - half_x);
   // The retargeter accepts both turned hands.
   for (const char* m : {"hand16_right", "hand16_left"}) {
     const bool right = std::string(m).find("right") != std::string::npos;

@@ -95,6 +95,8 @@ TEST(Render, TwoMachineLabWithDiscoveryServer) {
   EXPECT_EQ(files.at("tracker-pc/lab.pbtxt"), files.at("compute-pc/lab.pbtxt"));
   // Start order: server, then the other hosts, the ingest's last.
   const std::string install = files.at("tracker-pc/INSTALL");
+  ASSERT_NE(install.find("1. compute-pc: the discovery server"), std::string::npos) << install;
+  ASSERT_NE(install.find("3. the ingest's host last"), std::string::npos) << install;
   EXPECT_LT(install.find("1. compute-pc: the discovery server"), install.find("3. the ingest's host last")) << install;
 }
 

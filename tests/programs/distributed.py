@@ -21,6 +21,8 @@ import tempfile
 import threading
 import time
 
+import leftovers  # (this directory)
+
 CASE, BIN, DEPLOY, DOMAIN = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4]
 ARGS = sys.argv[5:]
 TMP = tempfile.mkdtemp(prefix="godhand-test-")
@@ -231,18 +233,24 @@ def case_freeze(service, recording, restart):
         if pid:
             os.kill(pid, signal.SIGSTOP)
             t0 = time.time()
-            while time.time() - t0 < (2.0 if not restart else 6.0):
-                l = p.stdout.readline()
-                if not l:
-                    break
-                lines.append(l)
-                print(l, end="")
-                if time.time() - t0 > 1.4 and l.startswith("launch: t "):
-                    frozen.append(l)
-                if restart and f"{service} restarted" in l:
-                    break
-            if not restart:
-                os.kill(pid, signal.SIGCONT)
+            try:
+                while time.time() - t0 < (2.0 if not restart else 6.0):
+                    l = p.stdout.readline()
+                    if not l:
+                        break
+                    lines.append(l)
+                    print(l, end="")
+                    if time.time() - t0 > 1.4 and l.startswith("launch: t "):
+                        frozen.append(l)
+                    if restart and f"{service} restarted" in l:
+                        break
+            finally:
+                # Never left stopped (a stopped process keeps its segments and ignores SIGTERM);
+                # with --restart the watchdog killed it already.
+                try:
+                    os.kill(pid, signal.SIGCONT)
+                except ProcessLookupError:
+                    pass
             if restart:
                 check(any(f"{service} restarted" in l for l in lines), f"{service} restarted by the watchdog")
         out = rest_of(p, 240)
@@ -626,15 +634,10 @@ finally:
         time.sleep(0.1)
     left = processes_of_domain()
     check(not left, f"no process of domain {DOMAIN} left ({left})")
-    new_shm = shm() - shm_before
-    # Other tests run in parallel; their segments come and go. Only ours would outlive them, so
-    # wait briefly and report what is still new.
-    deadline = time.time() + 5
-    while new_shm and time.time() < deadline:
-        time.sleep(0.2)
-        new_shm = shm() - shm_before
-    if new_shm:
-        print(f"note: new shared-memory entries still present (may belong to parallel tests): {sorted(new_shm)}")
+    leftovers.kill_domain(DOMAIN, "distributed.py")
+    # Entries new since the start that nobody holds (parallel tests hold theirs).
+    orphans = leftovers.orphaned_since(shm_before)
+    check(not orphans, f"no shared-memory entry left behind ({orphans})")
     shutil.rmtree(TMP, ignore_errors=True)
 
 print("PASSED" if not failures else f"{len(failures)} check(s) FAILED")

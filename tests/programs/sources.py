@@ -35,6 +35,8 @@ import sys
 import tempfile
 import time
 
+import leftovers  # (this directory)
+
 CASE, BIN, DEPLOY, DOMAIN = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4]
 ARGS = sys.argv[5:]
 TMP = tempfile.mkdtemp(prefix="godhand-sources-test-")
@@ -239,8 +241,11 @@ def case_rejects():
     ]
     for extra, want in cases:
         r = subprocess.run([ingest, "--domain", DOMAIN] + extra, capture_output=True, text=True, timeout=30)
-        first = r.stderr.strip().splitlines()[0] if r.stderr.strip() else ""
-        check(r.returncode == 2 and want in first, f"{' '.join(extra)}: exit {r.returncode}, '{first}'")
+        # One line (and the usual "try --help" hint), exit 2.
+        lines = [l for l in r.stderr.splitlines() if l.strip() and not l.startswith("try ")]
+        first = lines[0] if lines else ""
+        check(r.returncode == 2 and len(lines) == 1 and want in first,
+              f"{' '.join(extra)}: exit {r.returncode}, one line naming '{want}': {lines}")
     busy.close()
     r = subprocess.run([ingest, "--help"], capture_output=True, text=True, timeout=30)
     check(r.returncode == 0 and "dtrack://" in r.stdout and "--duration" in r.stdout, "--help documents the sources")
@@ -358,9 +363,11 @@ finally:
         time.sleep(0.2)
     left = processes_of_domain()
     check(not left, f"no process of domain {DOMAIN} left ({left})")
-    # Segments of this run: the launcher counts its services' own (shm_segments_left, checked
-    # above); a global count would see parallel tests' segments, so it is printed only.
-    print(f"info: shared-memory segments new since the start (any process): {len(shm() - before)}", flush=True)
+    leftovers.kill_domain(DOMAIN, "sources.py")
+    # Entries new since the start that nobody holds (parallel tests hold theirs): the
+    # launcher's services' and a standalone godhand-ingest's alike.
+    orphans = leftovers.orphaned_since(before)
+    check(not orphans, f"no shared-memory entry left behind ({orphans})")
     shutil.rmtree(TMP, ignore_errors=True)
 print("FAILED" if failures else "PASSED", flush=True)
 sys.exit(1 if failures else 0)

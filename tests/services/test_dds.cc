@@ -1,7 +1,7 @@
 // services/dds: the Fast DDS layer, with real participants (no mocks) on loopback only (every
 // participant comes from deploy/dds/godhand-local.xml). Each test uses its own DDS domain in
-// 100..130, so that tests run in parallel (ctest -j) never see each other; every wait has a
-// deadline.
+// 202..221, which no other test uses (tests/CMakeLists.txt: the table of domains), so that tests
+// run in parallel (ctest -j) never see each other; every wait has a deadline.
 #include <dirent.h>
 #include <signal.h>
 #include <spawn.h>
@@ -226,6 +226,20 @@ int waitChild(pid_t pid, Clock::duration timeout) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+// Children not yet waited for when a test leaves early (a failed ASSERT): killed and reaped at
+// the end of the scope, so that none stays on the test's domain. waited() after waitChild.
+struct Children {
+  std::vector<pid_t> running;
+  void add(pid_t pid) { if (pid > 0) running.push_back(pid); }
+  void waited(pid_t pid) { running.erase(std::remove(running.begin(), running.end(), pid), running.end()); }
+  ~Children() {
+    for (pid_t pid : running) {
+      kill(pid, SIGKILL);
+      waitpid(pid, nullptr, 0);
+    }
+  }
+};
+
 // "state-writer": writes one HandState (handState(1, 77, 16)) on godhand.state, then stays until
 // a reader has matched and gone again. "status-reader": waits for the ServiceStatus of
 // "test/parent". "env-default": with $FASTRTPS_DEFAULT_PROFILES_FILE naming godhand-local.xml
@@ -278,8 +292,8 @@ void expectOneLine(const std::string& what) {
 // -------------------------------------------------------------------------------------------------
 
 TEST(DdsProfiles, ShippedProfilesKeepEverythingOnLoopback) {
-  dds::Participant p(options(100, "test/loopback"));
-  EXPECT_EQ(p.domain(), 100);
+  dds::Participant p(options(202, "test/loopback"));
+  EXPECT_EQ(p.domain(), 202);
   EXPECT_EQ(p.profilesFile(), kLocal);
   const dds::ParticipantInfo info = p.info();
   EXPECT_EQ(info.name, "test/loopback");
@@ -302,7 +316,7 @@ TEST(DdsProfiles, DefaultProfilesFileIsTheShippedOneUnlessTheEnvironmentNamesOne
     ASSERT_GE(def.size(), tail.size());
     EXPECT_EQ(def.substr(def.size() - tail.size()), tail);
     dds::Options o;
-    o.domain = 118;  // the default file is the shipped one: same loopback-only participant
+    o.domain = 220;  // the default file is the shipped one: same loopback-only participant
     dds::Participant p(o);
     EXPECT_FALSE(p.info().builtin_transports);
     EXPECT_EQ(p.info().udp_whitelist, (std::vector<std::string>{"127.0.0.1"}));
@@ -312,17 +326,17 @@ TEST(DdsProfiles, DefaultProfilesFileIsTheShippedOneUnlessTheEnvironmentNamesOne
 TEST(DdsProfiles, MultihostProfilesParse) {
   // Parsed exactly as Fast DDS parses it, without registering its profiles: this process uses
   // godhand-local.xml (same profile names), before and after the check.
-  dds::Participant before(options(101, "test/multihost"));
+  dds::Participant before(options(203, "test/multihost"));
   EXPECT_NO_THROW(dds::Participant::checkProfiles(kMultihost));
   EXPECT_NO_THROW(dds::Participant::checkProfiles(kMultihost));  // again: cached
   EXPECT_NO_THROW(dds::Participant::checkProfiles(kLocal));
-  dds::Participant after(options(101, "test/multihost2"));
+  dds::Participant after(options(203, "test/multihost2"));
   EXPECT_THROW(dds::Participant::checkProfiles(kData + "bad.xml"), dds::DdsError);
   EXPECT_THROW(dds::Participant::checkProfiles(kData + "bad_element.xml"), dds::DdsError);
 }
 
 TEST(DdsQos, EachProfileGivesItsQos) {
-  dds::Participant p(options(102, "test/qos"));
+  dds::Participant p(options(204, "test/qos"));
   struct Expect {
     const char* profile;
     dds::QosInfo qos;
@@ -353,8 +367,8 @@ TEST(DdsQos, EachProfileGivesItsQos) {
 }
 
 TEST(DdsRoundTrip, HandStateArrivesBitIdenticalAtAnotherParticipant) {
-  dds::Participant a(options(103, "test/a"));
-  dds::Participant b(options(103, "test/b"));
+  dds::Participant a(options(205, "test/a"));
+  dds::Participant b(options(205, "test/b"));
   dds::Writer<msg::HandState> w(a, dds::topic::kHandState, dds::profile::kState);
   dds::Reader<msg::HandState> r(b, dds::topic::kHandState, dds::profile::kState);
   ASSERT_TRUE(waitFor([&] { return w.matched() == 1 && r.matched() == 1; }, kMatchDeadline));
@@ -395,8 +409,8 @@ TEST(DdsRoundTrip, HandStateArrivesBitIdenticalAtAnotherParticipant) {
 
 TEST(DdsRoundTrip, EveryTopicTypeAtItsBoundsArrives) {
   // The largest samples (every sequence at its IDL bound, ContactForces ~40 KB) go through.
-  dds::Participant a(options(104, "test/a"));
-  dds::Participant b(options(104, "test/b"));
+  dds::Participant a(options(206, "test/a"));
+  dds::Participant b(options(206, "test/b"));
 
   msg::HandTarget target;
   target.hand(3);
@@ -467,11 +481,11 @@ TEST(DdsRoundTrip, EveryTopicTypeAtItsBoundsArrives) {
 }
 
 TEST(DdsDurability, TransientLocalLateJoinerGetsTheLastSample) {
-  dds::Participant a(options(105, "test/writer"));
+  dds::Participant a(options(207, "test/writer"));
   dds::Writer<msg::HandState> w(a, dds::topic::kHandState, dds::profile::kState);
   for (std::uint64_t f = 1; f <= 3; ++f) ASSERT_TRUE(w.write(handState(0, f, 16)));
 
-  dds::Participant b(options(105, "test/late"));
+  dds::Participant b(options(207, "test/late"));
   dds::Reader<msg::HandState> r(b, dds::topic::kHandState, dds::profile::kState);
   std::vector<msg::HandState> got;
   ASSERT_TRUE(takeN(b, r, 1, &got, kMatchDeadline + kDataDeadline));
@@ -482,13 +496,13 @@ TEST(DdsDurability, TransientLocalLateJoinerGetsTheLastSample) {
 }
 
 TEST(DdsDurability, KeyedLateReaderGetsOneSamplePerHand) {
-  dds::Participant a(options(106, "test/resolver"));
+  dds::Participant a(options(208, "test/resolver"));
   dds::Writer<msg::HandState> w(a, dds::topic::kHandState, dds::profile::kState);
   for (std::uint64_t f = 1; f <= 4; ++f) {
     ASSERT_TRUE(w.write(handState(0, f, 16)));
     ASSERT_TRUE(w.write(handState(1, f + 100, 6)));
   }
-  dds::Participant b(options(106, "test/viewer"));
+  dds::Participant b(options(208, "test/viewer"));
   dds::Reader<msg::HandState> r(b, dds::topic::kHandState, dds::profile::kState);
   std::vector<msg::HandState> got;
   ASSERT_TRUE(takeN(b, r, 2, &got, kMatchDeadline + kDataDeadline));
@@ -506,7 +520,7 @@ TEST(DdsDurability, KeyedLateReaderGetsOneSamplePerHand) {
 }
 
 TEST(DdsDurability, LockStepLateJoinerGetsTheHistoryInOrder) {
-  dds::Participant a(options(107, "test/ingest"));
+  dds::Participant a(options(209, "test/ingest"));
   dds::Writer<msg::HandTarget> w(a, dds::topic::kHandTarget, dds::profile::kLockStep);
   msg::HandTarget t;
   t.targets().assign(16, pose(0.3));
@@ -514,7 +528,7 @@ TEST(DdsDurability, LockStepLateJoinerGetsTheHistoryInOrder) {
     t.stamp().frame(f);
     ASSERT_TRUE(w.write(t));
   }
-  dds::Participant b(options(107, "test/solver"));
+  dds::Participant b(options(209, "test/solver"));
   dds::Reader<msg::HandTarget> r(b, dds::topic::kHandTarget, dds::profile::kLockStep);
   std::vector<msg::HandTarget> got;
   ASSERT_TRUE(takeN(b, r, 256, &got, kMatchDeadline + kDataDeadline));
@@ -522,8 +536,8 @@ TEST(DdsDurability, LockStepLateJoinerGetsTheHistoryInOrder) {
 }
 
 TEST(DdsWrite, SequenceLongerThanItsBoundIsACountedFailure) {
-  dds::Participant a(options(108, "test/a"));
-  dds::Participant b(options(108, "test/b"));
+  dds::Participant a(options(210, "test/a"));
+  dds::Participant b(options(210, "test/b"));
   dds::Writer<msg::HandState> w(a, dds::topic::kHandState, dds::profile::kLockStep);
   dds::Reader<msg::HandState> r(b, dds::topic::kHandState, dds::profile::kLockStep);
   ASSERT_TRUE(waitFor([&] { return w.matched() == 1 && r.matched() == 1; }, kMatchDeadline));
@@ -573,7 +587,7 @@ TEST(DdsErrors, BadInputsGiveOneLineErrorsNamingTheCause) {
   };
   // Missing file.
   std::string e = error([] {
-    dds::Options o = options(109, "test/err");
+    dds::Options o = options(211, "test/err");
     o.profiles = "/nonexistent/godhand-profiles.xml";
     dds::Participant p(o);
   });
@@ -582,7 +596,7 @@ TEST(DdsErrors, BadInputsGiveOneLineErrorsNamingTheCause) {
   EXPECT_NE(e.find("does not exist"), std::string::npos) << e;
   // Malformed XML: the file and the line.
   e = error([] {
-    dds::Options o = options(109, "test/err");
+    dds::Options o = options(211, "test/err");
     o.profiles = kData + "bad.xml";
     dds::Participant p(o);
   });
@@ -596,7 +610,7 @@ TEST(DdsErrors, BadInputsGiveOneLineErrorsNamingTheCause) {
   EXPECT_NE(e.find("reliabilty"), std::string::npos) << e;
   // Unknown participant profile.
   e = error([] {
-    dds::Options o = options(109, "test/err");
+    dds::Options o = options(211, "test/err");
     o.participant_profile = "no_such_participant";
     dds::Participant p(o);
   });
@@ -605,7 +619,7 @@ TEST(DdsErrors, BadInputsGiveOneLineErrorsNamingTheCause) {
   EXPECT_NE(e.find("godhand-local.xml"), std::string::npos) << e;
   EXPECT_NE(e.find("godhand_participant"), std::string::npos) << e;  // what the file has
   // Unknown writer / reader profile.
-  dds::Participant p(options(109, "test/err"));
+  dds::Participant p(options(211, "test/err"));
   e = error([&] { dds::Writer<msg::HandState> w(p, dds::topic::kHandState, "godhand.no_such_profile"); });
   expectOneLine(e);
   EXPECT_NE(e.find("data_writer profile 'godhand.no_such_profile'"), std::string::npos) << e;
@@ -634,7 +648,7 @@ TEST(DdsErrors, BadInputsGiveOneLineErrorsNamingTheCause) {
 }
 
 TEST(DdsTopics, WritersAndReadersShareTopicsWithinAParticipant) {
-  dds::Participant p(options(110, "test/one"));
+  dds::Participant p(options(212, "test/one"));
   dds::Writer<msg::HandState> w1(p, dds::topic::kHandState, dds::profile::kState);
   dds::Writer<msg::HandState> w2(p, dds::topic::kHandState, dds::profile::kState);
   dds::Reader<msg::HandState> r1(p, dds::topic::kHandState, dds::profile::kState);
@@ -650,7 +664,7 @@ TEST(DdsTopics, WritersAndReadersShareTopicsWithinAParticipant) {
 }
 
 TEST(DdsWait, DeadlineWakeAndNoLostWakeUp) {
-  dds::Participant p(options(111, "test/wait"));
+  dds::Participant p(options(213, "test/wait"));
   // Deadline: returns false, not before it.
   Clock::time_point t0 = Clock::now();
   EXPECT_FALSE(p.waitForData(t0 + 50ms));
@@ -699,7 +713,7 @@ TEST(DdsDiscovery, ManyParticipantsInOneProcessAllMatch) {
   std::vector<std::unique_ptr<dds::Participant>> ps;
   std::vector<std::unique_ptr<dds::Reader<msg::ServiceStatus>>> readers;
   for (int i = 0; i < kParticipants; ++i) {
-    ps.push_back(std::make_unique<dds::Participant>(options(112, "test/p" + std::to_string(i))));
+    ps.push_back(std::make_unique<dds::Participant>(options(214, "test/p" + std::to_string(i))));
     readers.push_back(std::make_unique<dds::Reader<msg::ServiceStatus>>(*ps.back(), dds::topic::kServiceStatus,
                                                                          dds::profile::kStatus));
   }
@@ -717,7 +731,7 @@ TEST(DdsDiscovery, ManyParticipantsInOneProcessAllMatch) {
 }
 
 TEST(DdsLifetime, EndpointsOutlivingTheirParticipantAreInert) {
-  auto p = std::make_unique<dds::Participant>(options(113, "test/short"));
+  auto p = std::make_unique<dds::Participant>(options(215, "test/short"));
   dds::Writer<msg::HandState> w(*p, dds::topic::kHandState, dds::profile::kState);
   dds::Reader<msg::HandState> r(*p, dds::topic::kHandState, dds::profile::kState);
   p.reset();  // deletes the writer's and reader's entities too
@@ -732,8 +746,8 @@ TEST(DdsLifetime, EndpointsOutlivingTheirParticipantAreInert) {
 TEST(DdsShm, SegmentsOfDestroyedParticipantsAreReleased) {
   std::set<std::string> ours;
   {
-    dds::Participant a(options(114, "test/shm-a"));
-    dds::Participant b(options(114, "test/shm-b"));
+    dds::Participant a(options(216, "test/shm-a"));
+    dds::Participant b(options(216, "test/shm-b"));
     dds::Writer<msg::HandState> w(a, dds::topic::kHandState, dds::profile::kState);
     dds::Reader<msg::HandState> r(b, dds::topic::kHandState, dds::profile::kState);
     ASSERT_TRUE(waitFor([&] { return w.matched() == 1 && r.matched() == 1; }, kMatchDeadline));
@@ -748,11 +762,13 @@ TEST(DdsShm, SegmentsOfDestroyedParticipantsAreReleased) {
 }
 
 TEST(DdsCrossProcess, HandStateFromAnotherProcessArrivesBitIdenticalAndItsShmIsReleased) {
-  const pid_t child = spawnChild("state-writer", 115);
+  const pid_t child = spawnChild("state-writer", 217);
   ASSERT_GT(child, 0);
+  Children guard;
+  guard.add(child);
   std::set<std::string> child_shm;
   {
-    dds::Participant p(options(115, "test/parent"));
+    dds::Participant p(options(217, "test/parent"));
     dds::Reader<msg::HandState> r(p, dds::topic::kHandState, dds::profile::kState);
     std::vector<msg::HandState> got;
     const bool arrived = takeN(p, r, 1, &got, kMatchDeadline + kDataDeadline);
@@ -774,6 +790,7 @@ TEST(DdsCrossProcess, HandStateFromAnotherProcessArrivesBitIdenticalAndItsShmIsR
     }
   }  // the reader leaves: the child sees it unmatch, and exits
   EXPECT_EQ(waitChild(child, kChildDeadline), 0);
+  guard.waited(child);
   EXPECT_FALSE(child_shm.empty());
   const std::string left = shmEntriesLeft(child_shm, 2s);
   EXPECT_TRUE(left.empty()) << "left in /dev/shm by the child: " << left;
@@ -783,10 +800,12 @@ TEST(DdsCrossProcess, HandStateFromAnotherProcessArrivesBitIdenticalAndItsShmIsR
 // a SceneState (1.1 MB) at the wire's bound of 10,000 objects cross processes (RTPS fragments of
 // the shipped profile's transports) and reach a reader that joins after they were written.
 TEST(DdsCrossProcess, ASceneOfTenThousandObjectsCrossesProcesses) {
-  const pid_t child = spawnChild("scene-writer", 201);
+  const pid_t child = spawnChild("scene-writer", 221);
   ASSERT_GT(child, 0);
+  Children guard;
+  guard.add(child);
   {
-    dds::Participant p(options(201, "test/parent"));
+    dds::Participant p(options(221, "test/parent"));
     dds::Reader<msg::SceneDescription> rd(p, dds::topic::kSceneDescription, dds::profile::kState);
     dds::Reader<msg::SceneState> rs(p, dds::topic::kSceneState, dds::profile::kState);
     const Clock::time_point t0 = Clock::now();
@@ -802,10 +821,11 @@ TEST(DdsCrossProcess, ASceneOfTenThousandObjectsCrossesProcesses) {
     expectBigSceneState(st[0]);
   }  // the readers leave: the child sees them unmatch, and exits
   EXPECT_EQ(waitChild(child, kChildDeadline), 0);
+  guard.waited(child);
 }
 
 TEST(DdsCrossProcess, ProfilesFileThatFastDdsLoadedItselfIsNotAClash) {
-  const pid_t child = spawnChild("env-default", 117, {"FASTRTPS_DEFAULT_PROFILES_FILE=" + kLocal});
+  const pid_t child = spawnChild("env-default", 219, {"FASTRTPS_DEFAULT_PROFILES_FILE=" + kLocal});
   ASSERT_GT(child, 0);
   EXPECT_EQ(waitChild(child, kChildDeadline), 0);
 }
@@ -815,11 +835,13 @@ TEST(DdsCrossProcess, ManyProcessesOnOneHostAllMatch) {
   // with it, the 5th and later never discover each other; godhand-local.xml sets 32).
   constexpr int kChildren = 6;
   std::vector<pid_t> children;
+  Children guard;
   for (int i = 0; i < kChildren; ++i) {
-    children.push_back(spawnChild("status-reader", 116));
+    children.push_back(spawnChild("status-reader", 218));
+    guard.add(children.back());
     ASSERT_GT(children.back(), 0);
   }
-  dds::Participant p(options(116, "test/parent"));
+  dds::Participant p(options(218, "test/parent"));
   dds::Writer<msg::ServiceStatus> w(p, dds::topic::kServiceStatus, dds::profile::kStatus);
   msg::ServiceStatus s;
   s.service("test/parent");
@@ -829,6 +851,7 @@ TEST(DdsCrossProcess, ManyProcessesOnOneHostAllMatch) {
   std::string codes;
   for (pid_t c : children) {
     const int code = waitChild(c, kChildDeadline);
+    guard.waited(c);
     ok += code == 0;
     codes += std::to_string(code) + " ";
   }
