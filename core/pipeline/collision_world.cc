@@ -194,6 +194,7 @@ CollisionWorld::CollisionWorld(const Scene& scene) {
     o.reference = so.reference ? so.reference.get() : so.god.get();
     o.dynamic = so.mass > 0.0;
     o.skin = std::isfinite(so.god_skin) && so.god_skin > 0.0 ? so.god_skin : 0.0;
+    max_skin_ = std::max(max_skin_, o.skin);
     objects_.push_back(o);
     place(objects_.size() - 1, so.X_WO);
   }
@@ -207,6 +208,10 @@ CollisionWorld::CollisionWorld(const Scene& scene) {
   build_ids_.reserve(scene.objects.size());
   nodes_.reserve(2 * scene.objects.size());
   if (objectCount() > kLinearUpTo) buildTree();
+}
+
+double CollisionWorld::godBoundingRadius(const Shape& shape) const {
+  return geo::boundingRadius(grown(shape, max_skin_));
 }
 
 void CollisionWorld::place(size_t object, const Pose& X_WO) {
@@ -379,7 +384,9 @@ int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body
     start->reach = reach;
     start->objects.clear();
   }
-  const geo::Aabb query_W = geo::shapeAabb(body_shape, X_WB).inflated(reach);
+  // (The shape as the God side sees it, grown by the largest skin: a box's corners reach √3 skin
+  // farther, more than the object's box grown by its skin allows for.)
+  const geo::Aabb query_W = geo::shapeAabb(grown(body_shape, max_skin_), X_WB).inflated(reach);
   const double cos_same = std::cos(params.normal_angle);
   const double spread = std::max(params.spread, params.spread_fraction * geo::boundingRadius(body_shape));
   const double spread2 = spread * spread;
@@ -555,7 +562,7 @@ geo::SweepResult CollisionWorld::sweep(const Shape& shape, const Pose& X_W0, con
   best.distance = kInf;
   if (object_hit) *object_hit = -1;
   int total_iterations = 0;
-  const geo::Aabb swept = sweptBox(X_W0.p, X_W1.p, geo::boundingRadius(shape) + params.stop_distance);
+  const geo::Aabb swept = sweptBox(X_W0.p, X_W1.p, godBoundingRadius(shape) + params.stop_distance);
   CostClock clock(*this);
   for (const int object : candidates(swept)) {
     const size_t oi = static_cast<size_t>(object);
@@ -884,7 +891,7 @@ double CollisionWorld::referenceClearance(const Shape& shape, const Pose& X_WB, 
 
 double CollisionWorld::nearest(bool reference, const Shape& body_shape, const Pose& X_WB, double range) const {
   double best = kInf;
-  const geo::Aabb box = geo::shapeAabb(body_shape, X_WB).inflated(range);
+  const geo::Aabb box = geo::shapeAabb(reference ? body_shape : grown(body_shape, max_skin_), X_WB).inflated(range);
   CostClock clock(*this);
   for (const int object : candidates(box)) {
     const Object& o = objects_[static_cast<size_t>(object)];

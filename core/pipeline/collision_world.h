@@ -90,6 +90,9 @@ class CollisionWorld {
   };
 
   int objectCount() const { return static_cast<int>(objects_.size()); }
+  /// The bounding radius of the shape as the God side sees it (grown by the largest skin of the
+  /// scene's objects): how far a point of it moves per radian of a turn.
+  double godBoundingRadius(const Shape& shape) const;
   void setObjectPose(int object, const Pose& X_WO);
   const Pose& objectPose(int object) const { return objects_[static_cast<size_t>(object)].X_WO; }
   const geo::Aabb& objectBox(int object) const { return objects_[static_cast<size_t>(object)].box_W; }
@@ -233,6 +236,7 @@ class CollisionWorld {
     geo::Aabb box;
   };
   mutable BoxMemo memo_;
+  double max_skin_ = 0.0;  // the largest SceneObject::god_skin
 
   std::vector<Object> objects_;
   std::vector<geo::NearTriangle> near_, shell_;  // scratch

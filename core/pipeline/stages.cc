@@ -317,7 +317,10 @@ bool HandSolver::clearOf(size_t b, const Pose& X_a, const Pose& X_b, double room
   // |Δp| + |θ| ρ from there to X_a and on along the motion to X_b (distance is 1-Lipschitz in
   // the points' displacement), so the motion stays farther than `room` from everything.
   if (!(clear_reach_[b] > 0.0)) return false;
-  const double rho = geo::boundingRadius(model_.bodies[b].shape);
+  // (ρ of the shape the God side queries, skin included; a motion that is not finite, e.g. a NaN
+  // pose, is never certified: askedMotion reads it as 0.)
+  const double rho = collision_.godBoundingRadius(model_.bodies[b].shape);
+  if (!isValidPose(X_clear_[b]) || !isValidPose(X_a) || !isValidPose(X_b)) return false;
   const double moved = askedMotion(X_clear_[b], X_a, rho) + askedMotion(X_a, X_b, rho);
   return clear_reach_[b] - moved > room;
 }

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "geometry/bvh.h"
+#include "geometry/sweep.h"
 #include "physics/physics_world.h"
 #include "pipeline/collision_world.h"
 #include "pipeline/pipeline.h"
@@ -468,6 +469,42 @@ TEST(Pipeline, ASkinKeepsTheGodSideThatFarOut) {
   // Penetration is of the true ball against the reference: 0 at the stop, 3 mm when 3 mm in.
   EXPECT_EQ(world.penetration(ball, at(0, 0, z_stop)), 0.0);
   EXPECT_NEAR(world.penetration(ball, at(0, 0, top + r - 0.003)), 0.003, 1e-9);
+}
+
+// The same skin against a palm-like box coming down corner first: the grown box's corner reaches
+// √3 skin beyond the box's own corner, farther than the object's box grown by the skin. Stepped down
+// 1.5 mm, then 1 mm at a time, each step swept from where the last one stopped: the grown box never
+// crosses the God mesh (signed distance of the grown shape, exact, never below 0), and once the
+// corner is within a step of it a sweep stops it. Oracle: the analytic corner height of the box.
+TEST(Pipeline, ASkinnedBoxComingDownCornerFirstIsStoppedBeforeTheSkin) {
+  const double skin = 0.004, top = 0.03;
+  SceneObject block = boxObject("block", Vec3(0.03, 0.03, 0.03), at(0, 0, 0), 0.0);
+  block.god_skin = skin;
+  const Scene scene = sceneOf({block});
+  CollisionWorld world(scene);
+  Shape palm;
+  palm.type = ShapeType::Box;
+  palm.half_extents = Vec3(0.02, 0.02, 0.02);
+  const Quat q = Quat::FromTwoVectors(Vec3(-1, -1, -1).normalized(), -Vec3::UnitZ());  // a corner down
+  const double corner = Vec3(0.02, 0.02, 0.02).norm(), grown_corner = Vec3(0.024, 0.024, 0.024).norm();
+  Pose X{Vec3(0.001, 0.002, top + 0.001 + grown_corner), q};  // the grown corner 1 mm above the top
+  geo::SweepParams sp;
+  sp.exact_distance = false;
+  bool stopped = false;
+  for (int k = 0; k < 8 && !stopped; ++k) {
+    Pose X1 = X;
+    X1.p.z() -= k == 0 ? 0.0015 : 0.001;
+    const geo::SweepResult r = world.sweep(palm, X, X1, sp);
+    X = geo::interpolateMotion(X, X1, r.toc);
+    stopped = r.hit;
+    Vec3 n;
+    // The grown corner's height above the God mesh's top, analytic (the corner is the lowest point).
+    const double gap = X.p.z() - grown_corner - top;
+    EXPECT_GE(gap, 0.0) << "step " << k << ": the grown box crossed the God mesh (its corner " << gap << " m)";
+    EXPECT_GE(world.signedDistance(0, palm, X, 0.01, &n), 0.0) << "step " << k;
+    EXPECT_GT(X.p.z() - corner - top, skin) << "step " << k << ": the box itself within the skin";
+  }
+  EXPECT_TRUE(stopped) << "a corner 1 mm off, stepped down 8 mm, was never stopped";
 }
 
 // The scene pushes a dynamic object that overlaps a God object out of it (paper §6.2), however
