@@ -81,6 +81,8 @@ void PipelineParams::validate() const {
   require(max_clamped_rounds >= 1 && max_clamped_rounds <= 64, "max_clamped_rounds must be in [1, 64]");
   require(hit_resolves >= 0 && hit_resolves <= 16, "hit_resolves must be in [0, 16]");
   require(reacquire_after >= 0.0, "reacquire_after must be >= 0 (s; +inf = never)");
+  require(std::isfinite(start_retry) && start_retry >= 0.0 && start_retry <= 3600.0,
+          "start_retry must be in [0, 3600] s");
   require(threads >= 1 && threads <= 64, "threads must be in [1, 64]");
   require(body_threads >= 1 && body_threads <= 64, "body_threads must be in [1, 64]");
 }
@@ -593,7 +595,15 @@ const HandProposal& HandSolver::step(const HandInput& in, std::uint64_t frame) {
   p.diag = StepDiagnostics{};
   p.swept = false;
   ++counters_.steps;
-  if (p.tracked && !started_) start(in);
+  if (p.tracked && !started_) {
+    if (start_wait_ > 0) {
+      --start_wait_;
+    } else {
+      ++counters_.start_searches;
+      if (!start(in))
+        start_wait_ = std::max(0, static_cast<int>(std::ceil(params_.start_retry / params_.step.dt - 1e-9)) - 1);
+    }
+  }
   // Re-acquisition after a loss: a new start (kept where the hand was if nowhere is free).
   if (p.tracked && started_ && untracked_steps_ > 0 &&
       static_cast<double>(untracked_steps_) * params_.step.dt >= params_.reacquire_after && start(in)) {

@@ -78,6 +78,9 @@ struct PipelineParams {
   /// the last result, so it never passes through an object. Shorter losses (a dropped frame in a
   /// grasp) go on from where the hand was. 0 = every loss; +inf = never.
   double reacquire_after = 0.1;
+  /// s: a hand whose start found no free pose (targets deep in an object that encloses them)
+  /// searches again after this long, not every frame (a search costs up to ~10 ms).
+  double start_retry = 0.1;
   /// Solve -> sweep rounds per frame (Ortega et al., Redon; METHOD.md §2 step 5): after a clip
   /// the contacts at the clipped pose are found and the rest of the motion towards the same
   /// targets is solved and swept again, at most this many rounds in all.
@@ -226,6 +229,8 @@ struct SceneSnapshot {
 
 struct SolverCounters {
   std::uint64_t steps = 0, lifted_starts = 0, solver_failures = 0, inexact_solves = 0;
+  /// Searches for a free start pose of a hand not started yet (PipelineParams::start_retry apart).
+  std::uint64_t start_searches = 0;
   /// Starts again after a loss of at least PipelineParams::reacquire_after (of those, the lifted
   /// ones are counted in lifted_starts too).
   std::uint64_t reacquisitions = 0;
@@ -386,6 +391,7 @@ class HandSolver {
   std::vector<geo::SweepResult> body_sweeps_;           // per body
   std::vector<unsigned char> certified_;                // per body: clearOf its motion (no query)
   bool started_ = false;
+  int start_wait_ = 0;       // tracked steps before the next start search (after a failed one)
   int untracked_steps_ = 0;  // steps since the started hand was last tracked (saturating)
   static constexpr int kUntrackedCap = 1 << 30;
   std::uint64_t scene_frame_ = 0, scene_step_ = 0;

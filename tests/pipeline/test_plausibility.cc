@@ -776,6 +776,31 @@ TEST(Plausibility, AHandThatNeverStartsIsAFailedRun) {
   }
 }
 
+// A hand that cannot start (its target deep in a closed box) searches again every start_retry
+// (0.1 s), not every frame, and starts within that once its target is out: 30 frames at 100 Hz
+// inside make 3 searches, then a target 2 cm above the box starts it within 10 frames.
+TEST(Plausibility, AHandThatCannotStartSearchesAgainAtTheRetryInterval) {
+  Scene scene = sceneOf({meshObject("room", boxMesh(Vec3(0.5, 0.5, 0.5)), at(0, 0, 0))});
+  const HandModel m = bodyModel("sphere { radius: 0.01 }");
+  PipelineParams p = params(1.0 / 100);
+  p.max_start_shift = 0.1;
+  ASSERT_NEAR(p.start_retry, 0.1, 1e-12);
+  Pipeline pipe(scene, {&m}, p);
+  Pose target = at(0, 0, 0);
+  for (int k = 0; k < 30; ++k) pipe.step({HandInput{true, &target, nullptr}});
+  EXPECT_FALSE(pipe.started(0));
+  EXPECT_EQ(pipe.solver(0).counters().start_searches, 3u) << "frames 0, 10 and 20";
+  target = at(0, 0, 0.5 + 0.02);
+  int frames = 0;
+  while (!pipe.started(0) && frames < 20) {
+    pipe.step({HandInput{true, &target, nullptr}});
+    ++frames;
+  }
+  EXPECT_TRUE(pipe.started(0));
+  EXPECT_LE(frames, 10) << "started within start_retry of a free target";
+  EXPECT_NEAR(pipe.poses(0)[0].p.z(), 0.52, 1e-9) << "at its free target";
+}
+
 // The stuck figure counts a God hand that stays put while its free twin goes to a target it could
 // reach straight (a fed, frozen pose: a second, deliberately stuck "implementation"), and does not
 // count a hand that is where its twin is.
