@@ -54,10 +54,12 @@ TEST(ModelShipped, Hand16LoadsWithExpectedStructure) {
   }
   const auto rest = m.restPoses(Pose{});
   for (const Joint& j : m.joints) {
-    EXPECT_LT(jointGap(j, rest[static_cast<size_t>(j.parent)], rest[static_cast<size_t>(j.child)]), 1e-6) << j.name;
+    // (To round-off: the loader rejects a model only above 1e-6, so that bound would pass any
+    // model that loaded.)
+    EXPECT_LT(jointGap(j, rest[static_cast<size_t>(j.parent)], rest[static_cast<size_t>(j.child)]), 1e-12) << j.name;
     const auto a = jointAngles(j, rest[static_cast<size_t>(j.parent)], rest[static_cast<size_t>(j.child)]);
-    EXPECT_NEAR(a[0], 0.0, 1e-6) << j.name;
-    EXPECT_NEAR(a[1], 0.0, 1e-6) << j.name;
+    EXPECT_NEAR(a[0], 0.0, 1e-12) << j.name;
+    EXPECT_NEAR(a[1], 0.0, 1e-12) << j.name;
   }
 }
 

@@ -267,13 +267,6 @@ std::pair<double, double> rigidTracking(double angle, int steps, double* final_e
   return {err, rot};
 }
 
-// Rotating rigid motions: the joint rows are linear in the step's rotation, so a rigid rotation θ
-// of the whole hand is not exactly joint-consistent at first order; the step lags its target by
-// O(θ² L) (L: palm-to-phalanx lever, ≈ 0.07 m) and catches up once the target stops. This test
-// asserts that behaviour: quadratic in θ, bounded by θ² L, and zero when still. At rest every
-// flexion sits on its lower limit, and the active limit rows restrict how the joint rows' error
-// can be corrected: measured lag ≈ 3e-5 m at rest, ≈ 4e-6 m with every joint flexed to 0.5 rad
-// (and ≈ 6e-6 m at rest with the limits removed from the model).
 // Rotating rigid motions (5 mm and 0.05 rad per step, up to 0.025 rad with the fingers curled
 // away from every limit): joint-consistent targets are reached after every step. The
 // velocity-level rows alone leave a second-order lag (≈ ½θ²L, measured 3e-5 m before the
