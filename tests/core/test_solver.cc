@@ -773,7 +773,10 @@ TEST(SolverPgs, ConvergesToExactSolutionAllProblems) {
   EXPECT_LE(worst, 1e-6);
 }
 
-TEST(SolverPgs, SlowerOnHarderProblems) {
+// Generic (harder) problems: PGS's error against the exact solver printed per sweep count; what is
+// asserted is only that 5000 sweeps are never worse than 10 (PGS is not exact there, and no bound
+// on its error is claimed: the exact solver is the default).
+TEST(SolverPgs, MoreSweepsAreNeverWorseOnGenericProblems) {
   // The generic distribution (m up to 24N, mass blocks down to B Bᵀ + 1e-3 I): PGS still improves
   // with sweeps but its rate follows cond(A); reported, with a coarse monotonicity check.
   Rng rng(4242);
