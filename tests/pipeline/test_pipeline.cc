@@ -439,11 +439,16 @@ TEST(Pipeline, PenetrationSeesAnObjectEdgeOrCornerInsideTheBody) {
 // God mesh): contacts, sweeps and signed distances are taken from the God object grown by the
 // skin, the penetration figure from the true shape against the reference. Oracle: a sphere over
 // the flat top of a box, analytic.
-TEST(Pipeline, ASkinKeepsTheGodSideThatFarOut) {
-  const double top = 0.03, skin = 0.004, r = 0.01;
+// A static 6 cm block at the origin (top at z = 0.03) whose God side has the given skin.
+Scene skinnedBlock(double skin) {
   SceneObject block = boxObject("block", Vec3(0.03, 0.03, 0.03), at(0, 0, 0), 0.0);
   block.god_skin = skin;
-  const Scene scene = sceneOf({block});
+  return sceneOf({block});
+}
+
+TEST(Pipeline, ASkinKeepsTheGodSideThatFarOut) {
+  const double top = 0.03, skin = 0.004, r = 0.01;
+  const Scene scene = skinnedBlock(skin);
   CollisionWorld world(scene);
   Shape ball;
   ball.type = ShapeType::Sphere;
@@ -478,9 +483,7 @@ TEST(Pipeline, ASkinKeepsTheGodSideThatFarOut) {
 // corner is within a step of it a sweep stops it. Oracle: the analytic corner height of the box.
 TEST(Pipeline, ASkinnedBoxComingDownCornerFirstIsStoppedBeforeTheSkin) {
   const double skin = 0.004, top = 0.03;
-  SceneObject block = boxObject("block", Vec3(0.03, 0.03, 0.03), at(0, 0, 0), 0.0);
-  block.god_skin = skin;
-  const Scene scene = sceneOf({block});
+  const Scene scene = skinnedBlock(skin);
   CollisionWorld world(scene);
   Shape palm;
   palm.type = ShapeType::Box;
