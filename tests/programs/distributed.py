@@ -14,6 +14,7 @@ import re
 import signal
 import json
 import os
+import queue
 import shutil
 import subprocess
 import sys
@@ -172,33 +173,53 @@ def case_live(recording):
 
 
 def launch_bg(extra):
-    """Starts godhand-launch (per-second lines on) and returns (process, report path)."""
+    """Starts godhand-launch (per-second lines on) and returns (process, report path). A thread
+    reads its output line by line into p.lines (None at the end), so that every wait below has a
+    deadline of its own, even when the launcher goes silent."""
     report = os.path.join(TMP, "report.json")
     cmd = [os.path.join(BIN, "godhand-launch"), "--domain", DOMAIN, "--json", report, "--log-dir",
            os.path.join(TMP, "logs")] + extra
     print("$ " + " ".join(cmd), flush=True)
-    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True), report
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    p.lines = queue.Queue()
+
+    def pump():
+        for l in p.stdout:
+            p.lines.put(l)
+        p.lines.put(None)
+
+    threading.Thread(target=pump, daemon=True).start()
+    return p, report
+
+
+def next_line(p, timeout):
+    """p's next output line, or None at its end or after timeout seconds."""
+    try:
+        return p.lines.get(timeout=max(0.0, timeout))
+    except queue.Empty:
+        return None
 
 
 def rest_of(p, timeout):
-    """The rest of p's output once it ends (within timeout, else it is killed). Not
-    p.communicate(timeout=...): with a timeout it reads the pipe's descriptor directly and loses
-    the lines readline() has already buffered (a live line printed with the one read last)."""
-    out = []
-    reader = threading.Thread(target=lambda: out.append(p.stdout.read()), daemon=True)
-    reader.start()
-    reader.join(timeout)
-    if reader.is_alive():
+    """The rest of p's output once it ends (within timeout, else it is killed)."""
+    try:
+        p.wait(timeout)
+    except subprocess.TimeoutExpired:
         p.kill()
-        reader.join(10)
-    p.wait(10)
+        p.wait(10)
+    out = []
+    while True:
+        l = next_line(p, 10)
+        if l is None:
+            break
+        out.append(l)
     return "".join(out)
 
 
 def wait_line(p, pattern, timeout, lines):
     deadline = time.time() + timeout
     while time.time() < deadline:
-        l = p.stdout.readline()
+        l = next_line(p, deadline - time.time())
         if not l:
             return None
         lines.append(l)
@@ -235,7 +256,7 @@ def case_freeze(service, recording, restart):
             t0 = time.time()
             try:
                 while time.time() - t0 < (2.0 if not restart else 6.0):
-                    l = p.stdout.readline()
+                    l = next_line(p, t0 + (2.0 if not restart else 6.0) - time.time())
                     if not l:
                         break
                     lines.append(l)
@@ -256,7 +277,7 @@ def case_freeze(service, recording, restart):
         out = rest_of(p, 240)
     except Exception:
         p.kill()
-        p.communicate()
+        p.wait(10)
         raise
     print(out)
     lines += out.splitlines(True)
@@ -334,10 +355,10 @@ def case_hand_kill(service, recording):
         time.sleep(1.0)
         if pid:
             os.kill(pid, signal.SIGKILL)
-        out, _ = p.communicate(timeout=240)
+        out = rest_of(p, 240)
     except Exception:
         p.kill()
-        p.communicate()
+        p.wait(10)
         raise
     print(out)
     j = json.load(open(report)) if os.path.exists(report) else {}
