@@ -15,7 +15,7 @@ echo 'extern "C" int LLVMFuzzerTestOneInput(const unsigned char*, unsigned long)
 if ! "$CXX" -fsanitize=fuzzer "$OUT/probe.cc" -o "$OUT/probe" 2>/dev/null; then echo "SKIPPED: libFuzzer not available to $CXX"; exit 77; fi
 # The text target parses protobuf text: its messages are generated here with Debian's protoc.
 GEN="$OUT/gen"; mkdir -p "$GEN"
-FLAGS=(-std=c++17 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
+FLAGS=(-std=c++17 -O1 -gline-tables-only -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
        -I"$SRC/bridges" -I"$SRC/core" -I"$SRC/services" -I"$GEN" -isystem /usr/include/eigen3 -DNDEBUG)
 declare -A SOURCES=(
   [dtrack]="$SRC/tests/fuzz/fuzz_dtrack.cc $SRC/bridges/dtrack/dtrack.cc $SRC/bridges/leap/leap_recording.cc $SRC/core/math/pose.cc"
