@@ -198,6 +198,9 @@ CollisionWorld::CollisionWorld(const Scene& scene) {
     objects_.push_back(o);
     place(objects_.size() - 1, so.X_WO);
   }
+  const size_t slots = std::max<size_t>(1, std::min<size_t>(kHintSlots, scene.objects.size()));
+  hints_.assign(slots * kHintBodies * kPartSamples, -1);
+  hint_tag_.assign(slots, -1);
   near_.reserve(1024);
   shell_.reserve(1024);
   order_.reserve(1024);
@@ -371,10 +374,13 @@ bool CollisionWorld::insideGod(const Object& o, const Pose& X_OB) const {
 int& CollisionWorld::hintOf(int object, int body, int sample) {
   scratch_hint_ = -1;
   if (body < 0 || body >= kHintBodies || object < 0) return scratch_hint_;
-  // Grown once per object that a query reaches (objects far from every hand cost nothing).
-  if (hints_.size() <= static_cast<size_t>(object)) hints_.resize(static_cast<size_t>(object) + 1);
-  std::vector<int>& h = hints_[static_cast<size_t>(object)];
-  if (h.empty()) h.assign(static_cast<size_t>(kHintBodies) * kPartSamples, -1);
+  const size_t per_slot = static_cast<size_t>(kHintBodies) * kPartSamples;
+  const size_t slot = static_cast<size_t>(object) % hint_tag_.size();
+  int* h = hints_.data() + slot * per_slot;
+  if (hint_tag_[slot] != object) {  // another object's hints: forgotten
+    std::fill(h, h + per_slot, -1);
+    hint_tag_[slot] = object;
+  }
   return h[static_cast<size_t>(body) * kPartSamples + static_cast<size_t>(sample)];
 }
 

@@ -191,9 +191,14 @@ class CollisionWorld {
   mutable std::size_t moved_since_build_ = 0;
   mutable std::vector<int> cand_, stack_;     // scratch
   // contacts(): per (object, body, part sample), the triangle its closest-point query found last
-  // (−1: none), the next query's hint. Bodies 0 … kHintBodies − 1 only.
+  // (−1: none), the next query's hint. Bodies 0 … kHintBodies − 1 only. A direct-mapped table of
+  // kHintSlots objects (slot object % kHintSlots, tagged with its object), allocated with the
+  // world: a hint only shortens a query (MeshBvh::closest finds the same triangle without it), so
+  // objects sharing a slot cost time, never results, and no query allocates.
   static constexpr int kHintBodies = 64;
-  std::vector<std::vector<int>> hints_;  ///< per object: kHintBodies × part samples
+  static constexpr int kHintSlots = 32;
+  std::vector<int> hints_;      ///< slots × kHintBodies × part samples
+  std::vector<int> hint_tag_;   ///< per slot: its object, -1 when none
   int scratch_hint_ = -1;
   int& hintOf(int object, int body, int sample);
 

@@ -24,6 +24,9 @@
 
 #include "common/files.h"
 #include "model/hand_model.h"
+#include "pipeline/collision_world.h"
+#include "scene/mesh_io.h"
+#include "scene/scene.h"
 #include "step/cluster_step.h"
 
 #ifdef GODHAND_WRAP_MALLOC
@@ -267,6 +270,62 @@ void expectNoAllocation(SolverKind kind, const char* name) {
 
 TEST(StepAlloc, WarmExactStepAllocatesNothing) { expectNoAllocation(SolverKind::Exact, "exact"); }
 TEST(StepAlloc, WarmPgsStepAllocatesNothing) { expectNoAllocation(SolverKind::Pgs, "pgs"); }
+
+// The contact queries of a hand that reaches an object for the first time, long after its
+// collision world was built (a lab's hand moving from one part to the next): no allocation, the
+// per-object hints included (they are a fixed table allocated with the world).
+TEST(CollisionAlloc, FirstQueriesOfAnObjectAllocateNothing) {
+#ifndef GODHAND_WRAP_MALLOC
+  GTEST_SKIP() << "built without GODHAND_WRAP_MALLOC (sanitizer build)";
+#else
+  Scene scene;
+  scene.name = "parts";
+  for (int i = 0; i < 40; ++i) {  // more objects than hint slots: slots are shared
+    SceneObject o;
+    o.id = "part" + std::to_string(i);
+    o.index = i;
+    o.X_WO = Pose{Vec3(0.2 * i, 0, 0), Quat::Identity()};
+    o.god = std::make_shared<geo::MeshBvh>(boxMesh(Vec3(0.05, 0.05, 0.05)));
+    o.reference = o.god;
+    o.physics.type = PhysicsShapeType::None;
+    scene.objects.push_back(std::move(o));
+  }
+  CollisionWorld world(scene);
+  Shape palm;
+  palm.type = ShapeType::Box;
+  palm.half_extents = Vec3(0.04, 0.045, 0.01);
+  Shape finger;
+  finger.type = ShapeType::Capsule;
+  finger.radius = 0.008;
+  finger.half_length = 0.015;
+  std::vector<Contact> out;
+  out.reserve(256);
+  CollisionWorld::QueryStart start;
+  // Warm: the first part only, every body index the hand has.
+  auto touch = [&](int part, int* found) {
+    for (int b = 0; b < 16; ++b) {
+      out.clear();
+      const Pose X{Vec3(0.2 * part + 0.01 * (b % 4), 0, 0.05 + 0.012 + 0.002), Quat::Identity()};
+      *found += world.contacts(b == 0 ? palm : finger, X, b, 0.005, ContactParams{}, &out, &start);
+    }
+  };
+  int warm_found = 0;
+  for (int i = 0; i < 3; ++i) touch(0, &warm_found);
+  int found = 0;
+  long count = 0;
+  {
+    AllocationCounter counter;
+    for (int part = 1; part < 40; ++part) touch(part, &found);  // each reached for the first time
+    for (int part = 0; part < 40; ++part) touch(part, &found);  // and again (slots now shared)
+    count = counter.stop();
+  }
+  std::printf("[figure] collision_first_touch_allocations = %ld (%d contacts found on 79 part visits)\n", count, found);
+  EXPECT_GT(warm_found, 0);
+  EXPECT_GT(found, 79 * 16) << "every visit touched its part";
+  EXPECT_EQ(count, 0) << "first allocation called from " << AllocationCounter::firstCaller()
+                      << " (addr2line -Cfie godhand_alloc_test ADDRESS)";
+#endif
+}
 
 }  // namespace
 }  // namespace godhand

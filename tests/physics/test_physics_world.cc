@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <limits>
 #include <stdexcept>
@@ -229,6 +230,8 @@ TEST(PhysicsWorld, OffsetForceProducesAnalyticTorqueResponse) {
 
 struct Tracked {
   double max_speed = 0, max_angular = 0, max_dz = 0, max_dxy = 0, max_tilt = 0;
+  Vec3 omega_end = Vec3::Zero();       ///< angular velocity after the last step
+  std::uint64_t speeds_clamped = 0;    ///< the world's counter after the last step
 };
 
 TEST(PhysicsWorld, PushingALightBoxMovesItAlongTheTableWithoutLaunching) {
@@ -386,6 +389,8 @@ Tracked squeeze(double offset, double force, double seconds, Vec3* displacement)
     t.max_dxy = std::max(t.max_dxy, (w.pose(1).p - X0.p).head<2>().norm());
   }
   *displacement = w.pose(1).p - X0.p;
+  t.omega_end = w.angularVelocity(1);
+  t.speeds_clamped = w.counters().speeds_clamped;
   EXPECT_LE(t.max_angular, w.params().max_angular_speed + 1e-9);
   return t;
 }
@@ -409,6 +414,16 @@ TEST(PhysicsWorld, OffAxisSqueezeStaysBounded) {
   EXPECT_LT(t.max_dxy, 5e-3);
   EXPECT_LT(t.max_dz, 2e-3);
   EXPECT_LT(t.max_speed, 0.1);
+  // The spin: the couple is -2 x 2 mm x 100 N = -0.4 N m about z, against I_z = m (2h)^2 / 6 =
+  // 8.3e-5 kg m^2 and table friction of at most mu m g h ~ 0.05 N m, so the box spins up about -z
+  // by more than 4,000 rad/s^2, past the angular speed clamp within one frame: at the end it turns
+  // about -z at exactly the clamp (the clamp acted), and neither tips nor wobbles about x or y.
+  const double clamp = PhysicsParams{}.max_angular_speed;
+  std::printf("[figure] squeeze off-axis: spin at the end (%.3f, %.3f, %.3f) rad/s, clamp %.1f, clamped %llu times\n",
+              t.omega_end.x(), t.omega_end.y(), t.omega_end.z(), clamp, static_cast<unsigned long long>(t.speeds_clamped));
+  EXPECT_NEAR(-t.omega_end.z(), clamp, 1e-6 * clamp) << "spins about -z, the couple's axis, at the clamp";
+  EXPECT_LT(t.omega_end.head<2>().norm(), 0.05 * clamp) << "no tipping about x or y";
+  EXPECT_GT(t.speeds_clamped, 0u) << "the clamp, not the couple, bounds the spin";
 }
 
 // ---------------------------------------------------------------------------------------------
