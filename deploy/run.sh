@@ -127,14 +127,13 @@ PY
     ;;
   test)
     build build
-    # The ASan + UBSan build (every area's unit tests: ctest there runs every test it knows of, and
-    # one that is not built fails) runs beside the first ctest at idle priority (SCHED_IDLE): the
-    # tests wait on processes, sockets and timers about half the time (2026-12-06: ctest -j2 kept
-    # 54 % of the 2 cores busy), and an idle-class build only gets what they leave.
+    ctest --test-dir build --output-on-failure -j2 --timeout 600
+    echo "== core tests under ASan + UBSan =="
     mkdir -p build-asan
     configure build-asan -DGODHAND_SANITIZE=ON -DGODHAND_BENCHMARKS=OFF -DCMAKE_BUILD_TYPE=Debug \
       -DCMAKE_CXX_FLAGS="-D_GLIBCXX_ASSERTIONS" \
       -DCMAKE_CXX_FLAGS_DEBUG="-O1 -g1"
+    # Every area's unit tests (ctest there runs every test it knows of: one that is not built fails).
     asan_targets=(godhand_core_tests godhand_alloc_test godhand_geometry_tests godhand_scene_tests godhand_physics_tests
       godhand_bridges_tests godhand_pipeline_tests godhand_launch_tests godhand_services_tests godhand_runtime_tests
       godhand_viewer_tests)
@@ -143,17 +142,7 @@ PY
     # ctest entry for unbuilt tests (`_NOT_BUILT`) failed (CI of fe4ae65 on 2026-12-04).
     ninja_targets=$(ninja -C build-asan -t targets all 2>/dev/null)
     grep -q '^godhand_mujoco_tests:' <<<"$ninja_targets" && asan_targets+=(godhand_mujoco_tests)
-    # (Where the idle class is refused, e.g. a sandbox that filters sched_setscheduler: nice 19.)
-    idle=(chrt --idle 0)
-    "${idle[@]}" true 2>/dev/null || idle=(nice -n 19)
-    echo "run.sh: building build-asan ${asan_targets[*]} (${idle[*]}, beside the tests)"
-    "${idle[@]}" ninja -C build-asan "${asan_targets[@]}" >build-asan/build.log 2>&1 &
-    asan_pid=$!
-    trap 'kill -TERM "$asan_pid" 2>/dev/null || true' EXIT
-    ctest --test-dir build --output-on-failure -j2 --timeout 600
-    wait "$asan_pid" || { tail -60 build-asan/build.log; echo "run.sh: build failed (build-asan)" >&2; exit 1; }
-    trap - EXIT
-    echo "== core tests under ASan + UBSan =="
+    build build-asan "${asan_targets[@]}"
     # The parsers' fuzz test (label fuzz) is left out here: it is ASan + UBSan already (clang,
     # libFuzzer) and ran in the first ctest; a second run only built it again (3.5 of 8 minutes).
     # new_delete_type_mismatch=0: libfastrtps 2.9.1 itself (~RTPSReader) trips it (services tests).
