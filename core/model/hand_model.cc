@@ -77,6 +77,22 @@ Pose jointFrame(const pb::Vec3& anchor, const pb::Vec3& axis, const pb::Vec3& re
 
 }  // namespace
 
+Vec3 farthestPointInertia(const Shape& s, double m) {
+  switch (s.type) {
+    case ShapeType::Sphere:
+      return Vec3::Constant(m * s.radius * s.radius);
+    case ShapeType::Box: {  // a corner: sqrt(h_y² + h_z²) from the x axis
+      const Vec3 h = s.half_extents.cwiseProduct(s.half_extents);
+      return {m * (h.y() + h.z()), m * (h.x() + h.z()), m * (h.x() + h.y())};
+    }
+    case ShapeType::Capsule: {  // across the axis: a tip, h + r from the centre; along it: r
+      const double t = s.half_length + s.radius;
+      return {m * t * t, m * t * t, m * s.radius * s.radius};
+    }
+  }
+  return Vec3::Zero();
+}
+
 Vec3 inertiaDiagonal(const Shape& s, double m) {
   switch (s.type) {
     case ShapeType::Sphere: {
@@ -217,7 +233,9 @@ HandModel HandModel::fromText(const std::string& text, const std::string& source
                        "shape dimensions must lie in [1e-6, 100] m");
     if (!(b.mass >= 1e-9 && b.mass <= 1e6)) throw ModelError(where("mass") + "mass must lie in [1e-9, 1e6] kg, got " + std::to_string(b.mass));
     b.inertia = inertiaDiagonal(b.shape, b.mass);
-    if (!b.inertia.allFinite() || !(b.inertia.minCoeff() > 0.0))
+    b.turn_inertia = msg.rotation_weight() == pb::SOLID ? b.inertia : farthestPointInertia(b.shape, b.mass);
+    if (!b.inertia.allFinite() || !(b.inertia.minCoeff() > 0.0) || !b.turn_inertia.allFinite() ||
+        !(b.turn_inertia.minCoeff() > 0.0))
       throw ModelError(where("mass") + "the inertia derived from shape and mass is not finite and positive");
     b.X_MB_rest.p = toVec(pbb.rest_position());
     if (!b.X_MB_rest.p.allFinite()) throw ModelError(where("rest_position") + "must be finite");

@@ -34,11 +34,18 @@ struct Shape {
 /// uniform density with total mass m. Capsule = cylinder + two hemispherical caps.
 Vec3 inertiaDiagonal(const Shape& shape, double mass);
 
+/// Principal moments (body frame, about the centre) of the mass m put at the shape's farthest
+/// point from each axis: m max|r⊥|². What a turn moves the body's outermost point, the rotational
+/// weight of a step by default (idl/hand_model.proto, RotationWeight FARTHEST_POINT).
+Vec3 farthestPointInertia(const Shape& shape, double mass);
+
 struct Body {
   std::string name;
   Shape shape;
   double mass = 0.0;                   ///< kg
-  Vec3 inertia = Vec3::Zero();         ///< principal moments, body frame, kg m²
+  Vec3 inertia = Vec3::Zero();         ///< principal moments, body frame, kg m² (a uniform solid)
+  Vec3 turn_inertia = Vec3::Zero();    ///< the step's rotational weight (Gauss' metric), body frame, kg m²:
+                                       ///< farthestPointInertia or inertia (the model's rotation_weight)
   Pose X_MB_rest;                      ///< rest pose in the model frame
   std::string tracker_segment;         ///< which tracker segment drives it ("" = undriven)
 };

@@ -23,7 +23,7 @@ double micros(Clock::time_point a, Clock::time_point b) {
 void assembleMasses(QpProblem& qp, const HandModel& model, const std::vector<Pose>& X) {
   for (size_t b = 0; b < model.bodies.size(); ++b) {
     const Body& body = model.bodies[b];
-    qp.setRigidMass(static_cast<int>(b), body.mass, X[b].q.toRotationMatrix(), body.inertia);
+    qp.setRigidMass(static_cast<int>(b), body.mass, X[b].q.toRotationMatrix(), body.turn_inertia);
   }
 }
 bool finitePositive(double x) { return std::isfinite(x) && x > 0.0; }

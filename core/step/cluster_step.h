@@ -2,7 +2,7 @@
 // input (contact generation and CCD against meshes live in the collision stage):
 //
 //   coupling   z_u,i = k (X_target,i ⊖ X_god,i)            paper Eq. 2, k = min(k_s, 1/Δt²)
-//   assembly   masses M_i = diag(m I, R I_B Rᵀ), rows J, c  (joints, active limits, contacts)
+//   assembly   masses M_i = diag(m I, R I_turn Rᵀ) (I_turn: the model's rotational weight), rows J, c
 //   solve      z = argmin ½‖z − z_u‖²_M s.t. J_E z = c_E, J_I z ≥ c_I   (exact or PGS)
 //   integrate  X_i ← X_i ⊕ z_i Δt²                         symplectic Euler from rest, §2 step 4
 //   project    post-stabilisation: Newton iterations of the same QP at position level

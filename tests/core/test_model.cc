@@ -173,6 +173,58 @@ TEST(ModelInertia, CapsuleMatchesNumericIntegration) {
   }
 }
 
+/// The farthest-point weight by brute force: m times the largest squared distance from each body
+/// axis over points of the shape's surface (random directions, plus the box's corners and the
+/// capsule's tips, where the maximum sits; both are on the surface).
+TEST(ModelInertia, FarthestPointWeightIsTheMassAtTheFarthestSurfacePoint) {
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> g;
+  auto brute = [&](const Shape& s, double m) {
+    Vec3 best = Vec3::Zero();
+    auto take = [&](const Vec3& p) {
+      best = best.cwiseMax(m * Vec3(p.y() * p.y() + p.z() * p.z(), p.x() * p.x() + p.z() * p.z(), p.x() * p.x() + p.y() * p.y()));
+    };
+    for (int i = 0; i < 200000; ++i) {
+      const Vec3 u = Vec3(g(rng), g(rng), g(rng)).normalized();
+      if (s.type == ShapeType::Box) take(u.cwiseSign().cwiseProduct(s.half_extents).cwiseProduct(Vec3(std::abs(u.x()) > 0.3, std::abs(u.y()) > 0.3, std::abs(u.z()) > 0.3)));
+      else take(Vec3(0, 0, s.type == ShapeType::Capsule ? (u.z() >= 0 ? s.half_length : -s.half_length) : 0.0) + s.radius * u);
+    }
+    if (s.type == ShapeType::Box) take(s.half_extents);
+    else take(Vec3(0, 0, s.half_length + s.radius));
+    return best;
+  };
+  Shape sphere, box, capsule;
+  sphere.type = ShapeType::Sphere;
+  sphere.radius = 0.011;
+  box.type = ShapeType::Box;
+  box.half_extents = Vec3(0.04, 0.045, 0.012);
+  capsule.type = ShapeType::Capsule;
+  capsule.radius = 0.009;
+  capsule.half_length = 0.02;
+  for (const Shape* s : {&sphere, &box, &capsule}) {
+    const Vec3 got = farthestPointInertia(*s, 0.3), want = brute(*s, 0.3), solid = inertiaDiagonal(*s, 0.3);
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_NEAR(got[a], want[a], 1e-12) << "shape " << static_cast<int>(s->type) << " axis " << a;
+      EXPECT_GT(got[a], 1.99 * solid[a]) << "never less than twice the solid's: shape " << static_cast<int>(s->type);
+    }
+  }
+  // A box's is exactly three times its solid inertia.
+  EXPECT_LT((farthestPointInertia(box, 0.3) - 3.0 * inertiaDiagonal(box, 0.3)).norm(), 1e-15);
+}
+
+/// A model's rotational weight: the farthest point's unless the file asks for the solid's.
+TEST(ModelInertia, RotationWeightIsTheFarthestPointsUnlessSolidIsAsked) {
+  const std::string body = "bodies { name: \"a\" box { half_extents { x: 0.01 y: 0.02 z: 0.03 } } mass: 0.1 }\n";
+  for (const char* weight : {"", "rotation_weight: FARTHEST_POINT\n", "rotation_weight: SOLID\n"}) {
+    const HandModel m = HandModel::fromText(std::string("name: \"w\"\n") + weight + body, "w.pbtxt");
+    const Body& b = m.bodies[0];
+    EXPECT_EQ(b.inertia, inertiaDiagonal(b.shape, b.mass)) << weight;
+    EXPECT_EQ(b.turn_inertia, std::string(weight).find("SOLID") != std::string::npos ? b.inertia : farthestPointInertia(b.shape, b.mass))
+        << weight;
+  }
+  EXPECT_THROW(HandModel::fromText("name: \"w\"\nrotation_weight: HEAVIEST\n" + body, "w.pbtxt"), ModelError);
+}
+
 // ---------------------------------------------------------------------------------------------
 // Bad model files
 

@@ -27,6 +27,7 @@
 #include "common/files.h"
 #include "model/hand_model.h"
 #include "step/cluster_step.h"
+#include "../pipeline/probe_model.h"
 
 namespace godhand {
 namespace {
@@ -373,11 +374,11 @@ TEST(HandJoints, GapStaysClosedUnderInconsistentTargets) {
 struct LimitFigures {
   double gap = 0, lock = 0, limit = 0, off_bound = 0;
   int incomplete_flags = 0, steps_over_1e9 = 0, unflagged_over_1e9 = 0;
+  std::vector<double> end_angle;  ///< each joint's angle 1 after the last step
 };
 
 /// Drives every joint towards `flexion` (jump: at once; else ramped over 150 steps), 300 steps.
-LimitFigures driveFlexion(double flexion, bool jump, const StepParams& prm) {
-  const HandModel& m = hand16();
+LimitFigures driveFlexion(double flexion, bool jump, const StepParams& prm, const HandModel& m = hand16()) {
   ClusterStepper s(m, prm);
   Pose X_WM;
   X_WM.p = Vec3(0, 0, 0.2);
@@ -404,6 +405,7 @@ LimitFigures driveFlexion(double flexion, bool jump, const StepParams& prm) {
     const auto a = jointAngles(j, s.poses()[static_cast<size_t>(j.parent)], s.poses()[static_cast<size_t>(j.child)]);
     const double bound = flexion > 0 ? j.limits[0].upper : j.limits[0].lower;
     f.off_bound = std::max(f.off_bound, std::abs(a[0] - bound));
+    f.end_angle.push_back(a[0]);
   }
   return f;
 }
@@ -418,13 +420,29 @@ void reportLimits(const std::string& tag, const LimitFigures& f) {
 
 // Targets ramped to 150° (resp. −60°) at every joint: each joint ends on its upper (lower)
 // bound, and no step leaves a limit, joint or lock error above 1e-9, with default parameters.
+// 150° at every joint puts the thumb's outer phalanges' targets more than 180° from where its
+// limits hold them (cmc 50° + mcp 60° against 300°), so their shortest turn is backwards: with the
+// shipped model's rotational weight (the farthest point's, which weighs the turn more against the
+// move) the thumb's mcp is pulled to its lower bound instead. With the solid inertia every joint
+// ends on its upper bound; with the shipped weight every other joint does and every limit holds.
 TEST(HandLimits, RampTo150DegreesHoldsUpperLimits) {
-  const LimitFigures f = driveFlexion(150 * kDeg, false, StepParams{});
+  const HandModel solid = testing::withRotationWeight(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt", "SOLID");
+  const LimitFigures f = driveFlexion(150 * kDeg, false, StepParams{}, solid);
   reportLimits("curl150_ramp", f);
   EXPECT_LE(f.limit, 1e-9);
   EXPECT_LE(f.gap, 1e-9);
   EXPECT_LE(f.lock, 1e-9);
   EXPECT_LT(f.off_bound, 1e-9);
+  const LimitFigures d = driveFlexion(150 * kDeg, false, StepParams{});
+  reportLimits("curl150_ramp_shipped_weight", d);
+  EXPECT_LE(d.limit, 1e-9);
+  EXPECT_LE(d.gap, 1e-9);
+  EXPECT_LE(d.lock, 1e-9);
+  const HandModel& m = hand16();
+  for (size_t k = 0; k < m.joints.size(); ++k) {
+    const Joint& j = m.joints[k];
+    EXPECT_NEAR(d.end_angle[k], j.name == "thumb.mcp" ? j.limits[0].lower : j.limits[0].upper, 1e-9) << j.name;
+  }
 }
 
 TEST(HandLimits, RampBack60DegreesHoldsLowerLimits) {
@@ -611,12 +629,12 @@ TEST(StepContact, PenetratingBodyIsPushedOutAtContactBeta) {
 }
 
 /// Independent KKT check of a 1-body problem: M (z − z_u) = Σ J_kᵀ λ_k with M built from the
-/// model's mass and principal inertia at the pose's orientation.
+/// model's mass and rotational weight (turn_inertia) at the pose's orientation.
 double stationarityError(const Body& b, const Pose& X_before, const QpProblem& qp, const QpSolution& sol) {
   Mat6 M = Mat6::Zero();
   const Mat3 R = X_before.q.toRotationMatrix();
   M.topLeftCorner<3, 3>() = b.mass * Mat3::Identity();
-  M.bottomRightCorner<3, 3>() = R * b.inertia.asDiagonal() * R.transpose();
+  M.bottomRightCorner<3, 3>() = R * b.turn_inertia.asDiagonal() * R.transpose();
   Vec6 jtl = Vec6::Zero();
   for (int k = 0; k < qp.numRows(); ++k) jtl += sol.lambda[static_cast<size_t>(k)] * qp.row(k).J0;
   const Vec6 lhs = M * (sol.z[0] - qp.unconstrained(0));
