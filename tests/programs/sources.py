@@ -88,6 +88,27 @@ def source_block_equals(src, st):
             and src.get("rejected") == st["reasons"] and src.get("rejected_total") == st["rejected"])
 
 
+def run_launch(cmd, timeout, logs):
+    """godhand-launch to its end, or, past `timeout` s, stopped by SIGTERM (it stops its services)
+    and reported with the tail of every service's log, so that a hung run says where it hung."""
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        out, err = p.communicate(timeout=timeout)
+        return subprocess.CompletedProcess(cmd, p.returncode, out, err)
+    except subprocess.TimeoutExpired:
+        p.terminate()
+        try:
+            out, err = p.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            out, err = p.communicate()
+        print(f"TIMEOUT: godhand-launch still running after {timeout} s, stopped with SIGTERM; its services' logs:", flush=True)
+        for name in sorted(os.listdir(logs)) if os.path.isdir(logs) else []:
+            lines = open(os.path.join(logs, name), errors="replace").read().splitlines()
+            print(f"--- {name} (last 25 of {len(lines)} lines)\n" + "\n".join(lines[-25:]), flush=True)
+        return subprocess.CompletedProcess(cmd, 124, out, err)
+
+
 def live_with_faults(launch_args, dtrack_file, sender, seed, duration, report, logs, send_log):
     """godhand-launch on dtrack://127.0.0.1:PORT (launch_args added) fed by SENDER with every fault
     once the ingest is past its start barrier (it prints "receiving"); returns (exit code, output)."""
@@ -309,7 +330,7 @@ def case_tool_openxr(lab):
         cmd = [os.path.join(BIN, "godhand-launch"), "--lab", lab, "--domain", DOMAIN, "--check", "--json", report,
                "--log-dir", logs, "--quiet"] + (["--lockstep"] if not lossy else ["--loss-budget", str(LOSS)])
         print("$ " + " ".join(cmd), flush=True)
-        r = subprocess.run(cmd, capture_output=True, text=True, timeout=180)
+        r = run_launch(cmd, 180, logs)
         print(r.stdout[-3000:] + r.stderr[-2000:], flush=True)
         check(r.returncode == 0, f"{mode} run of the OpenXR tool lab with --check exited 0 (was {r.returncode})")
         tool_checks(json.load(open(report)) if os.path.exists(report) else {}, f"openxr {mode}", lossy, frames=80)
@@ -321,9 +342,9 @@ def case_tool(lab, dtrack_file, sender):
     cmd = [os.path.join(BIN, "godhand-launch"), "--lab", lab, "--domain", DOMAIN, "--lockstep", "--check", "--json", report,
            "--log-dir", logs, "--quiet"]
     print("$ " + " ".join(cmd), flush=True)
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    r = run_launch(cmd, 120, logs)
     print(r.stdout + r.stderr, flush=True)
-    check(r.returncode == 0, "lock-step run of the tool lab with --check exited 0")
+    check(r.returncode == 0, f"lock-step run of the tool lab with --check exited 0 (was {r.returncode})")
     tool_checks(json.load(open(report)) if os.path.exists(report) else {}, "lock-step", False)
 
     # Live over UDP with every fault of the sender.
