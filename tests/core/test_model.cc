@@ -173,9 +173,10 @@ TEST(ModelInertia, CapsuleMatchesNumericIntegration) {
   }
 }
 
-/// The farthest-point weight by brute force: m times the largest squared distance from each body
-/// axis over points of the shape's surface (random directions, plus the box's corners and the
-/// capsule's tips, where the maximum sits; both are on the surface).
+/// The farthest-point weight against an independent search: m times the largest squared distance
+/// from each body axis over the shape. A box is convex, so the maximum of that convex function is
+/// at a vertex: all 8 are tried. For a sphere and a capsule, 200,000 random points of the surface
+/// (the end spheres of a capsule): none may exceed the weight, and the best comes within 0.1 %.
 TEST(ModelInertia, FarthestPointWeightIsTheMassAtTheFarthestSurfacePoint) {
   std::mt19937_64 rng(7);
   std::normal_distribution<double> g;
@@ -184,13 +185,16 @@ TEST(ModelInertia, FarthestPointWeightIsTheMassAtTheFarthestSurfacePoint) {
     auto take = [&](const Vec3& p) {
       best = best.cwiseMax(m * Vec3(p.y() * p.y() + p.z() * p.z(), p.x() * p.x() + p.z() * p.z(), p.x() * p.x() + p.y() * p.y()));
     };
+    if (s.type == ShapeType::Box) {
+      for (int k = 0; k < 8; ++k)
+        take(Vec3((k & 1) ? 1 : -1, (k & 2) ? 1 : -1, (k & 4) ? 1 : -1).cwiseProduct(s.half_extents));
+      return best;
+    }
     for (int i = 0; i < 200000; ++i) {
       const Vec3 u = Vec3(g(rng), g(rng), g(rng)).normalized();
-      if (s.type == ShapeType::Box) take(u.cwiseSign().cwiseProduct(s.half_extents).cwiseProduct(Vec3(std::abs(u.x()) > 0.3, std::abs(u.y()) > 0.3, std::abs(u.z()) > 0.3)));
-      else take(Vec3(0, 0, s.type == ShapeType::Capsule ? (u.z() >= 0 ? s.half_length : -s.half_length) : 0.0) + s.radius * u);
+      const double end = s.type == ShapeType::Capsule ? (u.z() >= 0 ? s.half_length : -s.half_length) : 0.0;
+      take(Vec3(0, 0, end) + s.radius * u);
     }
-    if (s.type == ShapeType::Box) take(s.half_extents);
-    else take(Vec3(0, 0, s.half_length + s.radius));
     return best;
   };
   Shape sphere, box, capsule;
@@ -204,7 +208,8 @@ TEST(ModelInertia, FarthestPointWeightIsTheMassAtTheFarthestSurfacePoint) {
   for (const Shape* s : {&sphere, &box, &capsule}) {
     const Vec3 got = farthestPointInertia(*s, 0.3), want = brute(*s, 0.3), solid = inertiaDiagonal(*s, 0.3);
     for (int a = 0; a < 3; ++a) {
-      EXPECT_NEAR(got[a], want[a], 1e-12) << "shape " << static_cast<int>(s->type) << " axis " << a;
+      EXPECT_LE(want[a], got[a] * (1 + 1e-12)) << "a point beyond the weight: shape " << static_cast<int>(s->type) << " axis " << a;
+      EXPECT_GE(want[a], got[a] * (s->type == ShapeType::Box ? 1 - 1e-12 : 1 - 1e-3)) << "shape " << static_cast<int>(s->type) << " axis " << a;
       EXPECT_GT(got[a], 1.99 * solid[a]) << "never less than twice the solid's: shape " << static_cast<int>(s->type);
     }
   }
