@@ -112,6 +112,7 @@ void ActiveSetSolver::reserve(int bodies, int rows) {
   growTo(hit_pos_, 2 * m);
   growTo(hit_row_, 2 * m);
   growTo(eq_start_, static_cast<size_t>(bodies) + 1);
+  growTo(eq_fill_, static_cast<size_t>(bodies));
   growTo(dz_, static_cast<size_t>(bodies));
   growTo(absz_, static_cast<size_t>(bodies));
   growTo(kkt_scratch_, 2 * static_cast<size_t>(bodies));
@@ -331,8 +332,9 @@ void ActiveSetSolver::indexEqualities(const QpProblem& p) {
     if (row.body1 >= 0 && row.body1 != row.body0) ++eq_start_[static_cast<size_t>(row.body1) + 1];
   }
   for (int b = 0; b < nb; ++b) eq_start_[static_cast<size_t>(b) + 1] += eq_start_[static_cast<size_t>(b)];
-  int* fill = reinterpret_cast<int*>(tmp_.data());  // per-body cursor (tmp_ is free here)
-  static_assert(sizeof(double) >= sizeof(int), "cursor storage");
+  // (Its own storage: tmp_, which this once borrowed, holds one double per row, fewer than the
+  // bodies' cursors need when there are few rows: a problem without rows wrote through null.)
+  int* fill = eq_fill_.data();
   for (int b = 0; b < nb; ++b) fill[b] = eq_start_[static_cast<size_t>(b)];
   for (int k = 0; k < m; ++k) {
     const Row& row = p.row(k);

@@ -92,7 +92,7 @@ class ActiveSetSolver {
   static constexpr double kIllPivot = 1e-2;  ///< pivot² / A_kk below this: nearly dependent
   // Equality rows touching each body (CSR over bodies): append() reads A(P_i, k) only where row k
   // shares a body with an equality row, instead of over the whole passive set.
-  std::vector<int> eq_start_, eq_rows_;
+  std::vector<int> eq_start_, eq_rows_, eq_fill_;  // eq_fill_: per-body cursor of indexEqualities
   std::vector<int> hit_pos_, hit_row_;     // append(): the passive equality rows sharing a body
   std::vector<int> position_;              // row -> position in passive_ or -1
   std::vector<unsigned char> blocked_;     // rows that could not enter since the last change

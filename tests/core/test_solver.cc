@@ -693,6 +693,35 @@ TEST(SolverActiveSet, ConflictingEqualitiesAreNotConverged) {
   EXPECT_NE(solver.solve(z, sol).status, SolveStatus::Converged);
 }
 
+
+// Fewer rows than bodies: the solver's per-body scratch once borrowed a per-row buffer, which a
+// problem without rows left null (found by clang's UBSan: "store to null pointer") and one row
+// over eight bodies overran (ASan: heap-buffer-overflow). Analytic answer: bodies without rows
+// take their unconstrained motion; the one body with a bound row x ≥ c stops at it.
+TEST(SolverActiveSet, FewerRowsThanBodies) {
+  for (const int rows : {0, 1}) {
+    QpProblem qp;
+    constexpr int kBodies = 8;
+    qp.reset(kBodies);
+    for (int b = 0; b < kBodies; ++b) {
+      qp.setRigidMass(b, 1.0 + b, Mat3::Identity(), Vec3(1, 2, 3));
+      qp.unconstrained(b) = Vec6::Constant(-0.1 * (b + 1));
+    }
+    Vec6 e0 = Vec6::Zero();
+    e0[0] = 1.0;
+    if (rows == 1) qp.addRow(RowType::Equality, 3, e0, -1, Vec6::Zero(), 0.25, 0);
+    qp.finalize();
+    ActiveSetSolver solver;
+    QpSolution sol;
+    const SolveStats st = solver.solve(qp, sol);
+    ASSERT_EQ(st.status, SolveStatus::Converged) << rows << " rows";
+    for (int b = 0; b < kBodies; ++b)
+      for (int i = 0; i < 6; ++i) {
+        const double want = rows == 1 && b == 3 && i == 0 ? 0.25 : -0.1 * (b + 1);
+        EXPECT_NEAR(sol.z[static_cast<size_t>(b)][i], want, 1e-12) << rows << " rows, body " << b << " coordinate " << i;
+      }
+  }
+}
 // ---------------------------------------------------------------------------------------------
 // Projected Gauss–Seidel against the exact solution.
 
