@@ -30,6 +30,7 @@
 #include "common/delivery.h"
 #include "common/drill.h"
 #include "common/files.h"
+#include "common/frame_book.h"
 #include "common/watchdog.h"
 #include "launch/report.h"
 #include "common/lab_config.h"
@@ -563,7 +564,7 @@ int main(int argc, char** argv) {
   // resolved against (scene_step), not the newest: the scene steps on its own clock, and a hand
   // resting on an object the newest state has moved is not a penetration of the method.
   std::map<std::uint64_t, SceneSnapshot> recent_scenes;
-  std::map<std::uint64_t, std::vector<msg::HandTarget>> targets;  // frame -> per cluster
+  FrameBook<msg::HandTarget> targets(C);  // (ingest run, frame) -> per cluster
   std::uint64_t next_frame = 1;
   std::uint64_t last_scene_step = 0;
   std::vector<unsigned char> hand_stale(C, 0);
@@ -682,9 +683,8 @@ int main(int argc, char** argv) {
       s.substeps = static_cast<int>(h.substeps());
       s.joint_gap = h.joint_gap();
       HandInput in;
-      auto it = targets.find(h.stamp().frame());
-      if (it != targets.end() && c < it->second.size()) {
-        const msg::HandTarget& t = it->second[c];
+      if (const msg::HandTarget* tp = targets.find(h.stamp().run(), h.stamp().frame(), c)) {
+        const msg::HandTarget& t = *tp;
         if (t.tracked() && t.targets().size() == m_poses[c].size() && t.driven().size() == m_poses[c].size()) {
           m_targets[c].resize(t.targets().size());
           m_driven[c].resize(t.driven().size());
@@ -722,8 +722,7 @@ int main(int argc, char** argv) {
   };
   std::deque<Awaiting> awaiting;
   auto targetHere = [&](const msg::HandState& h) {
-    const auto it = targets.find(h.stamp().frame());
-    return it != targets.end() && h.hand() < it->second.size() && it->second[h.hand()].cluster().size() > 0;
+    return targets.find(h.stamp().run(), h.stamp().frame(), h.hand()) != nullptr;
   };
   auto scoreAwaiting = [&](bool flush) {
     while (!awaiting.empty()) {
@@ -764,13 +763,8 @@ int main(int argc, char** argv) {
         }
         if (t.stamp().run() == replay_run) replay_frame = std::max<std::uint64_t>(replay_frame, t.stamp().frame());
       }
-      if (t.hand() < C) {
-        auto& v = targets[t.stamp().frame()];
-        v.resize(C);
-        v[t.hand()] = t;
-      }
+      targets.put(t.stamp().run(), t.stamp().frame(), t.hand(), t);  // (a hand beyond the lab's: ignored)
     }
-    while (targets.size() > 512) targets.erase(targets.begin());
     msg::SceneState ss;
     std::string why;
     while (ss_in->take(ss)) {
@@ -849,15 +843,12 @@ int main(int argc, char** argv) {
     while (lockstep) {
       auto it = pending.find(next_frame);
       if (it == pending.end() || !scenes.count(next_frame)) break;
-      if (!ingest_done) {
-        const auto tg = targets.find(next_frame);
-        bool have_targets = tg != targets.end() && tg->second.size() == C;
-        for (size_t c = 0; have_targets && c < C; ++c) have_targets = tg->second[c].cluster().size() > 0;
-        if (!have_targets) break;
-      }
       bool all = true;
       for (unsigned char c : it->second.have) all = all && c;
       if (!all) break;
+      // (The states' run: one ingest run in lock-step.)
+      const std::uint64_t run = it->second.states[0].stamp().run();
+      if (!ingest_done && !targets.complete(run, next_frame)) break;
       const SceneSnapshot& snap = scenes[next_frame];
       double contacts = 0, c_us = 0, a_us = 0, s_us = 0, i_us = 0, ccd = 0, merge = 0;
       for (size_t c = 0; c < C; ++c) {
@@ -884,7 +875,7 @@ int main(int argc, char** argv) {
       st_total.push_back(c_us + a_us + s_us + i_us + ccd + merge + snap.step_us);
       pending.erase(it);
       scenes.erase(scenes.begin(), scenes.upper_bound(next_frame));
-      targets.erase(targets.begin(), targets.upper_bound(next_frame));
+      targets.eraseThrough(run, next_frame);
       ++next_frame;
     }
   };
