@@ -177,7 +177,9 @@ TEST(Retarget, RoundTripRecoversModelPosesExactly) {
     const HandModel& m = right ? models().right16 : models().left16;
     const Retargeter exact(m), minimal(m, RetargetOptions{TwistRule::kMinimalRotation});
     for (int trial = 0; trial < 200; ++trial) {
-      const Pose X_WM{Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng)), expRotation(Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5) * 4.0)};
+      // Braced lists draw left to right (function arguments: in an unspecified order, which gcc
+      // and clang take differently).
+      const Pose X_WM{Vec3{u(rng) - 0.5, u(rng) - 0.5, u(rng)}, expRotation(Vec3{u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5} * 4.0)};
       std::vector<std::array<double, 2>> angles(m.joints.size());
       for (std::size_t k = 0; k < m.joints.size(); ++k)
         for (int a = 0; a < m.joints[k].angleCount(); ++a) {

@@ -277,6 +277,9 @@ Angles randomAngles(const HandModel& m, std::mt19937& rng, double overshoot) {
   return out;
 }
 
+// Draws are sequenced left to right (separate statements or braced lists, whose elements are
+// evaluated in order): C++ leaves the order of function arguments unspecified, so
+// f(draw(), draw()) gives gcc and clang different instances from one seed.
 Vec3 randomVec(std::mt19937& rng) {
   std::normal_distribution<double> g(0.0, 1.0);
   return {g(rng), g(rng), g(rng)};
@@ -284,10 +287,17 @@ Vec3 randomVec(std::mt19937& rng) {
 
 Quat randomRotation(std::mt19937& rng) {
   std::uniform_real_distribution<double> u(0.0, kPi);
-  return Quat(Eigen::AngleAxisd(u(rng), randomVec(rng).normalized()));
+  const double angle = u(rng);
+  return Quat(Eigen::AngleAxisd(angle, randomVec(rng).normalized()));
 }
 
 Pose randomPose(std::mt19937& rng) { return {0.1 * randomVec(rng), randomRotation(rng)}; }
+
+/// Consistent poses at a random base pose (drawn first) and random angles.
+Poses randomConsistentPoses(const HandModel& m, std::mt19937& rng, double overshoot) {
+  const Pose X_WM = randomPose(rng);
+  return consistentPoses(m, X_WM, randomAngles(m, rng, overshoot));
+}
 
 /// Moves every body by a random small displacement (σ_p, m) and rotation (σ_r, rad).
 void jitter(Poses& X, std::mt19937& rng, double sigma_p, double sigma_r) {
@@ -440,7 +450,7 @@ TEST(ConstraintJointRows, JacobianMatchesFiniteDifferencesAtConsistentConfigurat
   for (const HandModel* m : {&smallModel(), &hand16()}) {
     JointFd fd;
     for (int t = 0; t < 6; ++t) {
-      const Poses X = consistentPoses(*m, randomPose(rng), randomAngles(*m, rng, 0.1));
+      const Poses X = randomConsistentPoses(*m, rng, 0.1);
       checkJointRows(*m, X, true, fd);
     }
     reportJointFd("fd_rel.exact." + m->name, fd);
@@ -454,7 +464,7 @@ TEST(ConstraintJointRows, JacobianMatchesFiniteDifferencesNearConsistentConfigur
   for (const HandModel* m : {&smallModel(), &hand16()}) {
     JointFd fd;
     for (int t = 0; t < 6; ++t) {
-      Poses X = consistentPoses(*m, randomPose(rng), randomAngles(*m, rng, 0.1));
+      Poses X = randomConsistentPoses(*m, rng, 0.1);
       jitter(X, rng, t < 3 ? 1e-3 : 5e-3, t < 3 ? 1e-2 : 5e-2);
       checkJointRows(*m, X, false, fd);
     }
@@ -495,7 +505,7 @@ TEST(ConstraintJointRows, RightHandSideIsMinusBetaErrorOverDt2) {
   const RowParams params[] = {{1e-3, 0.5, 0.5, 1e-4, 0.15}, {2e-3, 0.2, 0.5, 1e-4, 0.15}, {5e-4, 1.0, 0.3, 1e-4, 0.15}};
   for (const HandModel* m : {&smallModel(), &hand16()}) {
     for (const RowParams& prm : params) {
-      Poses X = consistentPoses(*m, randomPose(rng), randomAngles(*m, rng, 0.0));
+      Poses X = randomConsistentPoses(*m, rng, 0.0);
       jitter(X, rng, 1e-3, 2e-2);  // known small error in every row
       QpProblem qp;
       prepare(qp, *m);
@@ -516,7 +526,7 @@ TEST(ConstraintJointRows, RightHandSideIsMinusBetaErrorOverDt2) {
   }
   // At an exactly consistent configuration every right-hand side vanishes.
   for (const HandModel* m : {&smallModel(), &hand16()}) {
-    const Poses X = consistentPoses(*m, randomPose(rng), randomAngles(*m, rng, 0.0));
+    const Poses X = randomConsistentPoses(*m, rng, 0.0);
     QpProblem qp;
     prepare(qp, *m);
     addJointRows(qp, *m, X.data(), RowParams{});
@@ -547,7 +557,7 @@ TEST(ConstraintLimitRows, JacobianAndRightHandSideMatchOracle) {
     double worst_exact = 0, worst_near_ratio = 0, worst_rhs = 0;
     for (int t = 0; t < 10; ++t) {
       const bool exact = t < 6;
-      Poses X = consistentPoses(*m, randomPose(rng), randomAngles(*m, rng, 0.15));
+      Poses X = randomConsistentPoses(*m, rng, 0.15);
       if (!exact) jitter(X, rng, 1e-3, 1e-2);
       QpProblem qp;
       prepare(qp, *m);
@@ -788,7 +798,7 @@ TEST(ConstraintJointErrors, MatchIndependentRecomputation) {
   std::mt19937 rng(61);
   for (const HandModel* m : {&smallModel(), &hand16()}) {
     for (int t = 0; t < 8; ++t) {
-      Poses X = consistentPoses(*m, randomPose(rng), randomAngles(*m, rng, 0.2));
+      Poses X = randomConsistentPoses(*m, rng, 0.2);
       if (t > 0) jitter(X, rng, t * 5e-4, t * 5e-3);
       JointErrors want;
       for (const Joint& j : m->joints) {

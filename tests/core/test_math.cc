@@ -16,20 +16,33 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
+// Draws are taken one per statement, left to right: C++ leaves the order of function
+// arguments and of a binary operator's operands unspecified, so Vec3(normal(), normal(),
+// normal()) or draw() * draw() gives gcc and clang different instances from one seed.
 class Rng {
  public:
   explicit Rng(std::uint64_t seed) : gen_(seed) {}
   double uniform(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(gen_); }
   double normal() { return std::normal_distribution<double>(0.0, 1.0)(gen_); }
+  Vec3 normalVector() {  // x, y, z standard normal
+    const double x = normal();
+    const double y = normal();
+    const double z = normal();
+    return Vec3(x, y, z);
+  }
   Vec3 unitVector() {
     for (;;) {
-      const Vec3 v(normal(), normal(), normal());
+      const Vec3 v = normalVector();
       if (v.norm() > 1e-3) return v.normalized();
     }
   }
   Quat unitQuaternion() {  // uniform on SO(3) (both hemispheres: w may be negative)
     for (;;) {
-      Eigen::Vector4d v(normal(), normal(), normal(), normal());
+      const double w = normal();
+      const double x = normal();
+      const double y = normal();
+      const double z = normal();
+      Eigen::Vector4d v(w, x, y, z);
       if (v.norm() > 1e-3) {
         v.normalize();
         return Quat(v[0], v[1], v[2], v[3]);
@@ -131,11 +144,13 @@ TEST(MathRotation, ExpOfLogRoundTripUpToSign) {
     switch (i % 4) {
       case 0: q = rng.unitQuaternion(); break;
       case 1: {  // near identity, both signs
-        q = expRotation(std::pow(10.0, rng.uniform(-12.0, -2.0)) * rng.unitVector());
+        const double angle = std::pow(10.0, rng.uniform(-12.0, -2.0));
+        q = expRotation(angle * rng.unitVector());
         break;
       }
       case 2: {  // near π: w tiny, either sign
-        q = expRotation((kPi - std::pow(10.0, rng.uniform(-10.0, -1.0))) * rng.unitVector());
+        const double angle = kPi - std::pow(10.0, rng.uniform(-10.0, -1.0));
+        q = expRotation(angle * rng.unitVector());
         break;
       }
       default: {  // exactly half-turns and their negatives
@@ -197,7 +212,8 @@ TEST(MathPose, DifferenceOfUpdateIsStep) {
   double worst_p = 0.0, worst_r = 0.0;
   for (int i = 0; i < 10000; ++i) {
     Pose X;
-    X.p = Vec3(rng.normal(), rng.normal(), rng.normal()) * std::pow(10.0, rng.uniform(-3.0, 4.0));
+    const Vec3 g = rng.normalVector();
+    X.p = g * std::pow(10.0, rng.uniform(-3.0, 4.0));
     X.q = rng.unitQuaternion();
     Vec6 y;
     for (int k = 0; k < 6; ++k) y[k] = rng.normal();
@@ -233,8 +249,8 @@ TEST(MathPose, RotationPartIsWorldFrame) {
     Pose target, god;
     target.q = rng.unitQuaternion();
     god.q = rng.unitQuaternion();
-    target.p = Vec3(rng.normal(), rng.normal(), rng.normal());
-    god.p = Vec3(rng.normal(), rng.normal(), rng.normal());
+    target.p = rng.normalVector();
+    god.p = rng.normalVector();
     const Vec6 d = poseDifference(target, god);
     EXPECT_LE((d.head<3>() - (target.p - god.p)).norm(), 1e-15);
     const Vec3 theta = d.tail<3>();
@@ -264,7 +280,7 @@ TEST(MathPose, DifferenceOfIdenticalPosesIsZero) {
   Rng rng(9);
   for (int i = 0; i < 1000; ++i) {
     Pose X;
-    X.p = Vec3(rng.normal(), rng.normal(), rng.normal()) * 1e4;  // 10 km from the origin
+    X.p = rng.normalVector() * 1e4;  // 10 km from the origin
     X.q = rng.unitQuaternion();
     const Vec6 d = poseDifference(X, X);
     EXPECT_EQ(d.head<3>(), Vec3::Zero());
@@ -281,7 +297,7 @@ TEST(MathPose, IsValidPoseRejectsNonFiniteAndNonUnit) {
   Rng rng(10);
   for (int i = 0; i < 200; ++i) {
     Pose X;
-    X.p = Vec3(rng.normal(), rng.normal(), rng.normal()) * 1e4;
+    X.p = rng.normalVector() * 1e4;
     X.q = rng.unitQuaternion();
     ASSERT_TRUE(isValidPose(X));
     for (int k = 0; k < 3; ++k) {
@@ -322,9 +338,9 @@ TEST(MathPose, IsValidPoseRejectsNonFiniteAndNonUnit) {
 TEST(MathPose, ComposeAndInverse) {
   Rng rng(11);
   for (int i = 0; i < 1000; ++i) {
-    Pose X_AB{Vec3(rng.normal(), rng.normal(), rng.normal()), rng.unitQuaternion()};
-    Pose X_BC{Vec3(rng.normal(), rng.normal(), rng.normal()), rng.unitQuaternion()};
-    const Vec3 x_C(rng.normal(), rng.normal(), rng.normal());
+    Pose X_AB{rng.normalVector(), rng.unitQuaternion()};  // braced: left to right
+    Pose X_BC{rng.normalVector(), rng.unitQuaternion()};
+    const Vec3 x_C = rng.normalVector();
     // (X_AB X_BC) x = X_AB (X_BC x), checked against rotation matrices.
     const Vec3 ref = X_AB.q.toRotationMatrix() * (X_BC.q.toRotationMatrix() * x_C + X_BC.p) + X_AB.p;
     EXPECT_LE(((X_AB * X_BC) * x_C - ref).norm(), 1e-14);

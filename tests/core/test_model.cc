@@ -191,7 +191,7 @@ TEST(ModelInertia, FarthestPointWeightIsTheMassAtTheFarthestSurfacePoint) {
       return best;
     }
     for (int i = 0; i < 200000; ++i) {
-      const Vec3 u = Vec3(g(rng), g(rng), g(rng)).normalized();
+      const Vec3 u = Vec3{g(rng), g(rng), g(rng)}.normalized();  // braced: drawn left to right
       const double end = s.type == ShapeType::Capsule ? (u.z() >= 0 ? s.half_length : -s.half_length) : 0.0;
       take(Vec3(0, 0, end) + s.radius * u);
     }
@@ -493,8 +493,10 @@ TEST(ModelJointAngles, RecoverKnownFlexionAndAbduction) {
   for (const Joint& j : m.joints) {
     for (int trial = 0; trial < 200; ++trial) {
       Pose X_WP;
-      X_WP.p = Vec3(u(rng), u(rng), u(rng));
-      X_WP.q = Quat(u(rng), u(rng), u(rng), u(rng)).normalized();
+      // Braced lists draw left to right (function arguments: in an unspecified order, which
+      // gcc and clang take differently).
+      X_WP.p = Vec3{u(rng), u(rng), u(rng)};
+      X_WP.q = Quat{u(rng), u(rng), u(rng), u(rng)}.normalized();
       // Full range of atan2 except the ±π seam; abduction within (−π/2, π/2).
       const double t1 = 3.1 * u(rng);
       const double t2 = j.type == JointType::Spherical2Dof ? 1.5 * u(rng) : 0.0;

@@ -30,6 +30,9 @@ using VecX = Eigen::VectorXd;
 
 constexpr double kKktTol = 1e-9;
 
+// Draws are taken one per statement, left to right: C++ leaves the order of function
+// arguments and of a binary operator's operands unspecified, so Vec3(normal(), normal(),
+// normal()) or draw() * draw() gives gcc and clang different problems from one seed.
 class Rng {
  public:
   explicit Rng(std::uint64_t seed) : gen_(seed) {}
@@ -43,9 +46,21 @@ class Rng {
     for (int i = 0; i < 6; ++i) v[i] = normal();
     return v;
   }
+  Vec3 normal3() {
+    const double x = normal();
+    const double y = normal();
+    const double z = normal();
+    return Vec3(x, y, z);
+  }
+  Vec3 uniform3(double lo, double hi) {
+    const double x = uniform(lo, hi);
+    const double y = uniform(lo, hi);
+    const double z = uniform(lo, hi);
+    return Vec3(x, y, z);
+  }
   Vec3 unit3() {
     for (;;) {
-      const Vec3 v(normal(), normal(), normal());
+      const Vec3 v = normal3();
       if (v.norm() > 1e-3) return v.normalized();
     }
   }
@@ -127,7 +142,7 @@ Mat6 randomMass(Rng& rng, double c_lo, double c_hi, double scale) {
 Vec6 randomJ(Rng& rng) {
   if (rng.chance(0.5)) return rng.vec6();
   const Vec3 n = rng.unit3();
-  const Vec3 r = 0.1 * Vec3(rng.normal(), rng.normal(), rng.normal());
+  const Vec3 r = 0.1 * rng.normal3();
   Vec6 J;
   J << n, r.cross(n);
   return J;
@@ -157,7 +172,10 @@ TProblem generate(Rng& rng, const GenOptions& o) {
     P.M.push_back(randomMass(rng, o.mass_c_lo, o.mass_c_hi, bscale));
     P.z0.push_back(zscale * rng.vec6());
   }
-  for (int b = 0; b < o.N; ++b) P.zu.push_back(P.z0[static_cast<size_t>(b)] + zscale * rng.logUniform(-1.0, 1.0) * rng.vec6());
+  for (int b = 0; b < o.N; ++b) {
+    const double s = rng.logUniform(-1.0, 1.0);
+    P.zu.push_back(P.z0[static_cast<size_t>(b)] + zscale * s * rng.vec6());
+  }
   auto addRow = [&](RowType type) {
     TRow r;
     r.type = type;
@@ -899,8 +917,9 @@ TEST(SolverExtremes, MassRatios) {
       const double m0 = 0.01;
       for (int b = 0; b < 2; ++b) {
         const double m = b == 0 ? m0 : m0 * ratio;
-        const Vec3 I = m * 1e-4 * Vec3(rng.uniform(0.5, 2), rng.uniform(0.5, 2), rng.uniform(0.5, 2));
-        const Mat3 R = Eigen::AngleAxisd(rng.uniform(0, 3), rng.unit3()).toRotationMatrix();
+        const Vec3 I = m * 1e-4 * rng.uniform3(0.5, 2);
+        const double angle = rng.uniform(0, 3);
+        const Mat3 R = Eigen::AngleAxisd(angle, rng.unit3()).toRotationMatrix();
         P.M.push_back(rigidMass(m, R, I));
         P.zu.push_back(rng.vec6() * 10.0);
       }
@@ -919,7 +938,9 @@ TEST(SolverExtremes, MassRatios) {
       const int contacts = rng.integer(1, 8);
       for (int k = 0; k < contacts; ++k) {
         const int b = rng.integer(0, 1);
-        P.rows.push_back(contactRow(b, rng.unit3(), 0.02 * rng.unit3(), -std::abs(rng.normal())));
+        const Vec3 n = rng.unit3();
+        const Vec3 r = 0.02 * rng.unit3();
+        P.rows.push_back(contactRow(b, n, r, -std::abs(rng.normal())));
       }
       // z = 0 satisfies every row (c ≤ 0 for the contacts), so the problem is feasible.
       P.load(qp);
@@ -1017,9 +1038,13 @@ TEST(SolverExtremes, NearParallelNormals) {
       const int count = rng.integer(2, 6);
       for (int k = 0; k < count; ++k) {
         // Normals within `angle` of each other, contact points close together.
-        const Vec3 axis = Vec3(rng.normal(), rng.normal(), 0.0).normalized();
+        const double ax = rng.normal();
+        const double ay = rng.normal();
+        const Vec3 axis = Vec3(ax, ay, 0.0).normalized();
         const Vec3 n = Eigen::AngleAxisd(angle * rng.uniform(0.0, 1.0), axis) * n0;
-        const Vec3 r = 0.01 * Vec3(rng.normal(), rng.normal(), -1.0);
+        const double rx = rng.normal();
+        const double ry = rng.normal();
+        const Vec3 r = 0.01 * Vec3(rx, ry, -1.0);
         const double c = rng.chance(0.5) ? 0.0 : -1e-3 * std::abs(rng.normal());
         P.rows.push_back(contactRow(rng.integer(0, P.N - 1), n, r, c));
       }
@@ -1165,7 +1190,12 @@ TEST(SolverWeakness, NearParallelEqualityRows) {
         zu[2] = -10.0 * std::abs(rng.normal());
         P.zu.push_back(zu);
       }
-      for (int k = 0; k < 3; ++k) P.rows.push_back(contactRow(rng.integer(0, 1), rng.unit3(), 0.01 * rng.unit3(), -1e-3));
+      for (int k = 0; k < 3; ++k) {
+        const int b = rng.integer(0, 1);
+        const Vec3 n = rng.unit3();
+        const Vec3 r = 0.01 * rng.unit3();
+        P.rows.push_back(contactRow(b, n, r, -1e-3));
+      }
       TRow row;
       row.type = RowType::Equality;
       row.b0 = 0;
@@ -1332,13 +1362,14 @@ TEST(SolverAnalytic, SingleContactProjectsNormalComponent) {
   Rng rng(1212);
   for (int i = 0; i < 200; ++i) {
     const double m = rng.logUniform(-3, 3);
-    const Vec3 I = m * Vec3(rng.uniform(0.1, 1), rng.uniform(0.1, 1), rng.uniform(0.1, 1));
+    const Vec3 I = m * rng.uniform3(0.1, 1);
     const double c = rng.normal();
     Vec6 zu = rng.vec6() * 10;
     const bool into = i % 4 != 3;
     zu[2] = into ? c - std::abs(rng.normal()) - 1e-3 : c + std::abs(rng.normal());
     qp.reset(1);
-    qp.setRigidMass(0, m, Eigen::AngleAxisd(rng.uniform(0, 3), rng.unit3()).toRotationMatrix(), I);
+    const double angle = rng.uniform(0, 3);
+    qp.setRigidMass(0, m, Eigen::AngleAxisd(angle, rng.unit3()).toRotationMatrix(), I);
     qp.unconstrained(0) = zu;
     Vec6 J;
     J << 0, 0, 1, 0, 0, 0;  // n = +Z at u = 0: J = (n, u × n)

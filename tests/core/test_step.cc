@@ -59,6 +59,9 @@ const HandModel& ball() {
 // ---------------------------------------------------------------------------------------------
 // Helpers
 
+// Draws are taken one per statement, left to right: C++ leaves the order of function
+// arguments and of a binary operator's operands unspecified, so Vec3(g(), g(), g()) or
+// unit() * uniform() gives gcc and clang different instances from one seed.
 class Rng {
  public:
   explicit Rng(std::uint64_t seed) : gen_(seed) {}
@@ -66,12 +69,18 @@ class Rng {
   Vec3 unit() {
     std::normal_distribution<double> g(0.0, 1.0);
     for (;;) {
-      const Vec3 v(g(gen_), g(gen_), g(gen_));
+      const double x = g(gen_);
+      const double y = g(gen_);
+      const double z = g(gen_);
+      const Vec3 v(x, y, z);
       if (v.norm() > 1e-3) return v.normalized();
     }
   }
   /// Uniform direction, length uniform in [0, max_len].
-  Vec3 vector(double max_len) { return unit() * uniform(0.0, max_len); }
+  Vec3 vector(double max_len) {
+    const Vec3 u = unit();
+    return u * uniform(0.0, max_len);
+  }
   Quat rotation(double max_angle) { return expRotation(vector(max_angle)); }
 
  private:
@@ -202,7 +211,10 @@ struct JitteredHand {
   }
   void targets(const HandModel& m, int step, double offset, double angle, std::vector<Pose>& T) {
     T = m.restPoses(base(step));
-    for (Pose& P : T) P = moveRigid(P, rng.vector(offset), rng.rotation(angle));
+    for (Pose& P : T) {
+      const Vec3 dp = rng.vector(offset);
+      P = moveRigid(P, dp, rng.rotation(angle));
+    }
   }
   Rng rng;
   Vec3 centre;
@@ -775,7 +787,10 @@ struct PressScenario {
     Pose X = X_WM;
     X.p += Vec3(0.01 * std::sin(0.01 * i), 0.01 * std::cos(0.013 * i) - 0.01, -0.01);
     T = hand16().restPoses(X);
-    for (Pose& P : T) P = moveRigid(P, rng.vector(jitter_m), rng.rotation(jitter_rad));
+    for (Pose& P : T) {
+      const Vec3 dp = rng.vector(jitter_m);
+      P = moveRigid(P, dp, rng.rotation(jitter_rad));
+    }
     planeContacts(hand16(), stepper.poses(), origin.z(), 0.01, contacts);
     before = stepper.poses();
     const StepReport& r = stepper.step({T.data(), nullptr, contacts.data(), static_cast<int>(contacts.size())});
@@ -908,7 +923,10 @@ TEST(StepExtremes, MassRatiosFrom1eMinus4To1e4) {
         base.p = Vec3(0.02 * std::sin(0.05 * i), 0, 0);
         base.q = expRotation(Vec3(0.3 * std::sin(0.03 * i), 0, 0));
         T = m.restPoses(base);
-        for (Pose& P : T) P = moveRigid(P, rng.vector(0.005), rng.rotation(0.3));
+        for (Pose& P : T) {
+          const Vec3 dp = rng.vector(0.005);
+          P = moveRigid(P, dp, rng.rotation(0.3));
+        }
         const StepReport& r = s.step({T.data(), nullptr, nullptr, 0});
         ASSERT_TRUE(allFinite(s.poses())) << type << " ratio " << ratio;
         not_converged += r.solve.status != SolveStatus::Converged;

@@ -36,12 +36,21 @@ struct Problem {
 void makeProblem(std::mt19937_64& rng, int contacts, double pull, Problem* out) {
   std::normal_distribution<double> n01(0.0, 1.0);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
+  // x, then y, then z: Vec3(n01(rng), n01(rng), n01(rng)) leaves the order of the draws to the
+  // compiler (gcc and clang differ), so the problems would depend on it.
+  auto normal3 = [&] {
+    const double x = n01(rng);
+    const double y = n01(rng);
+    const double z = n01(rng);
+    return Vec3(x, y, z);
+  };
   const HandModel& m = hand();
   const int nb = static_cast<int>(m.bodies.size());
   out->X = m.restPoses(Pose{});
   for (Pose& x : out->X) {  // joints opened by up to ~0.1 mm and turned by up to ~0.05 rad
-    x.p += 3e-5 * Vec3(n01(rng), n01(rng), n01(rng));
-    x.q = (Quat(Eigen::AngleAxisd(0.03 * n01(rng), Vec3(n01(rng), n01(rng), n01(rng)).normalized())) * x.q).normalized();
+    x.p += 3e-5 * normal3();
+    const double angle = 0.03 * n01(rng);
+    x.q = (Quat(Eigen::AngleAxisd(angle, normal3().normalized())) * x.q).normalized();
   }
   QpProblem& qp = out->qp;
   qp.reset(nb);
@@ -59,8 +68,8 @@ void makeProblem(std::mt19937_64& rng, int contacts, double pull, Problem* out) 
     Contact ct;
     ct.body = static_cast<int>(u01(rng) * nb) % nb;
     const Pose& x = out->X[static_cast<size_t>(ct.body)];
-    ct.p_W = x.p + 0.01 * Vec3(n01(rng), n01(rng), n01(rng));
-    ct.n_W = Vec3(n01(rng), n01(rng), n01(rng)).normalized();
+    ct.p_W = x.p + 0.01 * normal3();
+    ct.n_W = normal3().normalized();
     ct.distance = -1e-3 + 3e-3 * u01(rng);
     ct.key = static_cast<std::uint64_t>(c + 1);
     addContactRow(qp, ct, x, prm);

@@ -24,15 +24,27 @@
 namespace godhand::geo {
 namespace {
 
+// Draws are taken one per statement (x, then y, then z): C++ leaves the order of
+// function arguments and of a binary operator's operands unspecified, so
+// Vec3(draw(), draw(), draw()) gives gcc and clang different instances from one seed.
 struct Rng {
   std::mt19937_64 gen;
   explicit Rng(unsigned seed) : gen(seed) {}
   double uniform(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(gen); }
   int integer(int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(gen); }
-  Vec3 vec(double half) { return Vec3(uniform(-half, half), uniform(-half, half), uniform(-half, half)); }
+  Vec3 vec(double half) {
+    const double x = uniform(-half, half);
+    const double y = uniform(-half, half);
+    const double z = uniform(-half, half);
+    return Vec3(x, y, z);
+  }
   Quat rotation() {
     std::normal_distribution<double> n(0.0, 1.0);
-    return Quat(n(gen), n(gen), n(gen), n(gen)).normalized();
+    const double w = n(gen);
+    const double x = n(gen);
+    const double y = n(gen);
+    const double z = n(gen);
+    return Quat(w, x, y, z).normalized();
   }
 };
 
@@ -132,7 +144,10 @@ Shape randomShape(Rng& rng, int i) {
   s.type = static_cast<ShapeType>(i % 3);
   s.radius = rng.uniform(0.003, 0.01);
   s.half_length = rng.uniform(0.005, 0.02);
-  s.half_extents = Vec3(rng.uniform(0.002, 0.015), rng.uniform(0.002, 0.015), rng.uniform(0.002, 0.015));
+  const double ex = rng.uniform(0.002, 0.015);
+  const double ey = rng.uniform(0.002, 0.015);
+  const double ez = rng.uniform(0.002, 0.015);
+  s.half_extents = Vec3(ex, ey, ez);
   return s;
 }
 

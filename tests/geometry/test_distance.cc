@@ -17,15 +17,27 @@
 namespace godhand::geo {
 namespace {
 
+// Draws are taken one per statement (x, then y, then z): C++ leaves the order of
+// function arguments and of a binary operator's operands unspecified, so
+// Vec3(draw(), draw(), draw()) gives gcc and clang different instances from one seed.
 struct Rng {
   std::mt19937_64 gen;
   explicit Rng(unsigned seed) : gen(seed) {}
   double uniform(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(gen); }
   int integer(int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(gen); }
-  Vec3 vec(double half) { return Vec3(uniform(-half, half), uniform(-half, half), uniform(-half, half)); }
+  Vec3 vec(double half) {
+    const double x = uniform(-half, half);
+    const double y = uniform(-half, half);
+    const double z = uniform(-half, half);
+    return Vec3(x, y, z);
+  }
   Quat rotation() {
     std::normal_distribution<double> n(0.0, 1.0);
-    Quat q(n(gen), n(gen), n(gen), n(gen));
+    const double w = n(gen);
+    const double x = n(gen);
+    const double y = n(gen);
+    const double z = n(gen);
+    Quat q(w, x, y, z);
     return q.normalized();
   }
 };
@@ -39,7 +51,13 @@ Shape randomShape(Rng& rng, ShapeType type) {
       s.radius = rng.uniform(0.003, 0.01);
       s.half_length = rng.integer(0, 9) == 0 ? 0.0 : rng.uniform(0.005, 0.025);
       break;
-    case ShapeType::Box: s.half_extents = Vec3(rng.uniform(0.002, 0.02), rng.uniform(0.002, 0.02), rng.uniform(0.0005, 0.02)); break;
+    case ShapeType::Box: {
+      const double x = rng.uniform(0.002, 0.02);
+      const double y = rng.uniform(0.002, 0.02);
+      const double z = rng.uniform(0.0005, 0.02);
+      s.half_extents = Vec3(x, y, z);
+      break;
+    }
   }
   return s;
 }
@@ -176,9 +194,10 @@ TEST(Distance, ShapeAabbAndBoundingRadiusEncloseTheShape) {
     for (int k = 0; k < 2000; ++k) {
       Vec3 x_B;
       if (s.type == ShapeType::Box) {
-        x_B = Vec3(rng.integer(0, 1) ? s.half_extents.x() : -s.half_extents.x(),
-                   rng.integer(0, 1) ? s.half_extents.y() : -s.half_extents.y(),
-                   rng.integer(0, 1) ? s.half_extents.z() : -s.half_extents.z());
+        const double x = rng.integer(0, 1) ? s.half_extents.x() : -s.half_extents.x();
+        const double y = rng.integer(0, 1) ? s.half_extents.y() : -s.half_extents.y();
+        const double z = rng.integer(0, 1) ? s.half_extents.z() : -s.half_extents.z();
+        x_B = Vec3(x, y, z);
       } else {
         Vec3 dir = rng.vec(1.0).normalized();
         x_B = Vec3(0, 0, rng.integer(0, 1) ? s.half_length : -s.half_length) + s.radius * dir;

@@ -31,6 +31,10 @@ constexpr int kMotionDivisor = 3;
 constexpr int kMotionDivisor = 1;
 #endif
 
+// Draws are taken one per statement (x, then y, then z): C++ leaves the order of
+// function arguments and of a binary operator's operands unspecified, so
+// Vec3(draw(), draw(), draw()) or draw() * draw() gives gcc and clang different
+// instances from one seed.
 struct Rng {
   std::mt19937_64 gen;
   explicit Rng(unsigned seed) : gen(seed) {}
@@ -38,11 +42,18 @@ struct Rng {
   int integer(int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(gen); }
   Vec3 direction() {
     std::normal_distribution<double> n(0.0, 1.0);
-    return Vec3(n(gen), n(gen), n(gen)).normalized();
+    const double x = n(gen);
+    const double y = n(gen);
+    const double z = n(gen);
+    return Vec3(x, y, z).normalized();
   }
   Quat rotation() {
     std::normal_distribution<double> n(0.0, 1.0);
-    return Quat(n(gen), n(gen), n(gen), n(gen)).normalized();
+    const double w = n(gen);
+    const double x = n(gen);
+    const double y = n(gen);
+    const double z = n(gen);
+    return Quat(w, x, y, z).normalized();
   }
 };
 
@@ -103,7 +114,10 @@ TriangleMesh thinShell(int n, double size, double thickness) {
 TriangleMesh needleSoup(Rng& rng, int n) {
   TriangleMesh m;
   for (int t = 0; t < n; ++t) {
-    const Vec3 a = 0.03 * Vec3(rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(-1, 1));
+    const double ax = rng.uniform(-1, 1);
+    const double ay = rng.uniform(-1, 1);
+    const double az = rng.uniform(-1, 1);
+    const Vec3 a = 0.03 * Vec3(ax, ay, az);
     const Vec3 dir = rng.direction();
     const double len = rng.uniform(0.002, 0.02);
     const int base = static_cast<int>(m.vertices.size());
@@ -127,7 +141,10 @@ Shape randomShape(Rng& rng, int i) {
   s.type = static_cast<ShapeType>(i % 3);
   s.radius = rng.uniform(0.002, 0.01);
   s.half_length = rng.uniform(0.005, 0.02);
-  s.half_extents = Vec3(rng.uniform(0.002, 0.012), rng.uniform(0.002, 0.012), rng.uniform(0.001, 0.012));
+  const double ex = rng.uniform(0.002, 0.012);
+  const double ey = rng.uniform(0.002, 0.012);
+  const double ez = rng.uniform(0.001, 0.012);
+  s.half_extents = Vec3(ex, ey, ez);
   return s;
 }
 
@@ -272,12 +289,26 @@ void randomMotion(Rng& rng, const TriangleMesh& m, const MotionSpec& spec, Pose*
   X0->q = rng.rotation();
   Vec3 step;
   switch (rng.integer(0, 2)) {
-    case 0: step = -rng.uniform(0.0, spec.max_translation) * n + 0.3 * spec.max_translation * rng.uniform(0, 1) * rng.direction(); break;
-    case 1: step = spec.max_translation * rng.uniform(0.2, 1.0) * rng.direction().cross(n); break;
-    default: step = spec.max_translation * rng.uniform(0.0, 1.0) * rng.direction(); break;
+    case 0: {
+      const double toward = rng.uniform(0.0, spec.max_translation);
+      const double jitter = rng.uniform(0, 1);
+      step = -toward * n + 0.3 * spec.max_translation * jitter * rng.direction();
+      break;
+    }
+    case 1: {
+      const double length = rng.uniform(0.2, 1.0);
+      step = spec.max_translation * length * rng.direction().cross(n);
+      break;
+    }
+    default: {
+      const double length = rng.uniform(0.0, 1.0);
+      step = spec.max_translation * length * rng.direction();
+      break;
+    }
   }
   X1->p = X0->p + step;
-  X1->q = expRotation(rng.uniform(0.0, spec.max_rotation) * rng.direction()) * X0->q;
+  const double angle = rng.uniform(0.0, spec.max_rotation);
+  X1->q = expRotation(angle * rng.direction()) * X0->q;
 }
 
 void runRandomMotions(const char* name, const MeshBvh& bvh, int count, unsigned seed, bool brute_every_50th,
@@ -355,7 +386,8 @@ TEST(Sweep, InterpolateMotionEndpointsAndMotionBound) {
     X0.p = 0.1 * rng.direction();
     X0.q = rng.rotation();
     X1.p = X0.p + 0.02 * rng.direction();
-    X1.q = expRotation(rng.uniform(0, 3.0) * rng.direction()) * X0.q;
+    const double angle = rng.uniform(0, 3.0);
+    X1.q = expRotation(angle * rng.direction()) * X0.q;
     const Pose A = interpolateMotion(X0, X1, 0.0), B = interpolateMotion(X0, X1, 1.0);
     EXPECT_LT((A.p - X0.p).norm(), 1e-15);
     EXPECT_NEAR(std::abs(A.q.dot(X0.q)), 1.0, 1e-12);
@@ -510,7 +542,8 @@ TEST(Sweep, IterationCapIsConservative) {
     X0.p = Vec3(0.0, 0.0, 0.05);
     X0.q = rng.rotation();
     X1.p = Vec3(0.001, 0.0, 0.025);
-    X1.q = expRotation(rng.uniform(0, 1.0) * rng.direction()) * X0.q;
+    const double angle = rng.uniform(0, 1.0);
+    X1.q = expRotation(angle * rng.direction()) * X0.q;
     const SweepResult r = sweep(s, X0, X1, sphere, params);
     capped += r.capped;
     if (r.capped) { EXPECT_TRUE(r.hit); EXPECT_LT(r.toc, 1.0); }

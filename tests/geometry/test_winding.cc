@@ -21,13 +21,19 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
+// Draws are taken one per statement (x, then y, then z): C++ leaves the order of
+// function arguments unspecified, so Vec3(draw(), draw(), draw()) gives gcc and
+// clang different instances from one seed.
 struct Rng {
   std::mt19937_64 gen;
   explicit Rng(unsigned seed) : gen(seed) {}
   double uniform(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(gen); }
   Vec3 direction() {
     std::normal_distribution<double> n(0.0, 1.0);
-    return Vec3(n(gen), n(gen), n(gen)).normalized();
+    const double x = n(gen);
+    const double y = n(gen);
+    const double z = n(gen);
+    return Vec3(x, y, z).normalized();
   }
 };
 
@@ -109,7 +115,10 @@ void checkConvex(const char* name, const TriangleMesh& m, Rng& rng, int points, 
   const Aabb b = bvh.bounds().inflated(0.5 * bvh.bounds().extent().maxCoeff());
   int classified = 0;
   for (int i = 0; i < points; ++i) {
-    const Vec3 p(rng.uniform(b.lo.x(), b.hi.x()), rng.uniform(b.lo.y(), b.hi.y()), rng.uniform(b.lo.z(), b.hi.z()));
+    const double x = rng.uniform(b.lo.x(), b.hi.x());
+    const double y = rng.uniform(b.lo.y(), b.hi.y());
+    const double z = rng.uniform(b.lo.z(), b.hi.z());
+    const Vec3 p(x, y, z);
     const double fast = bvh.windingNumber(p), exact = exactWinding(m, p);
     *max_err = std::max(*max_err, std::abs(fast - exact));
     EXPECT_NEAR(fast, exact, 0.1) << name;  // far-field dipoles (2nd order) at β = 2: a few %
@@ -166,7 +175,10 @@ TEST(Winding, BunnyInsideOutside) {
   double max_err = 0.0;
   int well_in = 0, well_out = 0, agree = 0, total = 0;
   for (int i = 0; i < 120; ++i) {
-    const Vec3 p(rng.uniform(b.lo.x(), b.hi.x()), rng.uniform(b.lo.y(), b.hi.y()), rng.uniform(b.lo.z(), b.hi.z()));
+    const double x = rng.uniform(b.lo.x(), b.hi.x());
+    const double y = rng.uniform(b.lo.y(), b.hi.y());
+    const double z = rng.uniform(b.lo.z(), b.hi.z());
+    const Vec3 p(x, y, z);
     const double fast = bvh.windingNumber(p), exact = exactWinding(m, p);
     max_err = std::max(max_err, std::abs(fast - exact));
     EXPECT_NEAR(fast, exact, 0.1);

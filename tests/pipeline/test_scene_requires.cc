@@ -165,10 +165,25 @@ TEST(SceneRequires, ASleepingBoxIsPushedOutAndWoken) {
 TEST(SceneRequires, BroadPhaseAnswersAsEveryObjectAlone) {
   std::mt19937 rng(14);
   std::uniform_real_distribution<double> u(-1.0, 1.0);
+  // (sx u, sy u, sz u) drawn x, then y, then z: C++ leaves the order of function arguments
+  // unspecified, and gcc and clang take it differently.
+  auto scaled = [&](double sx, double sy, double sz) {
+    const double x = sx * u(rng);
+    const double y = sy * u(rng);
+    const double z = sz * u(rng);
+    return Vec3(x, y, z);
+  };
   std::vector<SceneObject> objects;
   for (int i = 0; i < 60; ++i) {
-    const Vec3 half(0.01 + 0.02 * std::abs(u(rng)), 0.01 + 0.02 * std::abs(u(rng)), 0.01 + 0.02 * std::abs(u(rng)));
-    const Pose X{Vec3(0.3 * u(rng), 0.3 * u(rng), 0.1 * u(rng)), Quat(Eigen::AngleAxisd(3.0 * u(rng), Vec3(u(rng), u(rng), 1.0).normalized()))};
+    const double hx = 0.01 + 0.02 * std::abs(u(rng));
+    const double hy = 0.01 + 0.02 * std::abs(u(rng));
+    const double hz = 0.01 + 0.02 * std::abs(u(rng));
+    const Vec3 half(hx, hy, hz);
+    const Vec3 p = scaled(0.3, 0.3, 0.1);
+    const double angle = 3.0 * u(rng);
+    const double ax = u(rng);
+    const double ay = u(rng);
+    const Pose X{p, Quat(Eigen::AngleAxisd(angle, Vec3(ax, ay, 1.0).normalized()))};
     objects.push_back(boxObject("b" + std::to_string(i), half, X, i % 3 == 0 ? 0.1 : 0.0));
   }
   const Scene scene = sceneOf(objects);
@@ -187,13 +202,13 @@ TEST(SceneRequires, BroadPhaseAnswersAsEveryObjectAlone) {
   for (int round = 0; round < 80; ++round) {
     // Move a third of the objects (refits; every 32nd time a rebuild).
     for (size_t o = 0; o < objects.size(); o += 3) {
-      const Pose X{objects[o].X_WO.p + Vec3(0.02 * u(rng), 0.02 * u(rng), 0.02 * u(rng)), objects[o].X_WO.q};
+      const Pose X{objects[o].X_WO.p + scaled(0.02, 0.02, 0.02), objects[o].X_WO.q};
       world.setObjectPose(static_cast<int>(o), X);
       alone[o].setObjectPose(0, X);
     }
     for (int q = 0; q < 20; ++q) {
-      const Pose X0{Vec3(0.35 * u(rng), 0.35 * u(rng), 0.12 * u(rng)), Quat(Eigen::AngleAxisd(3.0 * u(rng), Vec3::UnitX()))};
-      const Pose X1{X0.p + Vec3(0.05 * u(rng), 0.05 * u(rng), 0.05 * u(rng)), X0.q};
+      const Pose X0{scaled(0.35, 0.35, 0.12), Quat(Eigen::AngleAxisd(3.0 * u(rng), Vec3::UnitX()))};  // braced: in order
+      const Pose X1{X0.p + scaled(0.05, 0.05, 0.05), X0.q};
       std::vector<Contact> all, each;
       world.contacts(capsule, X0, 3, 0.02, cp, &all);
       for (size_t o = 0; o < alone.size(); ++o) {

@@ -452,7 +452,12 @@ TEST(ConvexHull, ContainsAllPointsAndIsOutward) {
   std::mt19937 rng(7);
   std::normal_distribution<double> g(0.0, 1.0);
   std::vector<Vec3> pts;
-  for (int i = 0; i < 2000; ++i) pts.emplace_back(g(rng), 0.5 * g(rng), 2.0 * g(rng));
+  for (int i = 0; i < 2000; ++i) {  // x, then y, then z (argument order is unspecified in C++)
+    const double x = g(rng);
+    const double y = 0.5 * g(rng);
+    const double z = 2.0 * g(rng);
+    pts.emplace_back(x, y, z);
+  }
   const TriangleMesh h = convexHull(pts);
   expectClosedConvexOutward(h, 1e-9);
   for (const Vec3& p : pts) EXPECT_LE(maxPlaneDistance(h, p), 1e-9);
