@@ -309,9 +309,56 @@ fcl::Transform3d fclPose(const Pose& X) {
   return T;
 }
 
+/// An exactness certificate of a separated shape–triangle distance, independent of the code under
+/// test (duality): the answer's two points lie in the shape and in the triangle, so the distance
+/// is at most their gap (`upper`); and along the answer's direction n the shape's lowest support
+/// minus the triangle's highest is a separation, so the distance is at least that (`lower`).
+/// Where both equal the answer, it is the distance.
+struct Certificate {
+  double upper = 0, lower = 0;
+  bool inside = false;  ///< both points within 1e-12 m of their sets
+};
+Certificate certify(const Shape& s, const Pose& X_MB, const Vec3& a, const Vec3& b, const Vec3& c, const ClosestPoints& cp) {
+  Certificate k;
+  const Mat3 R = X_MB.q.toRotationMatrix();
+  const Vec3 q = R.transpose() * (cp.p_shape - X_MB.p);  // the shape's point in the body frame
+  double out = 0;  // how far the shape's point lies outside the shape
+  switch (s.type) {
+    case ShapeType::Sphere: out = q.norm() - s.radius; break;
+    case ShapeType::Capsule: {
+      const double z = std::clamp(q.z(), -s.half_length, s.half_length);
+      out = (q - Vec3(0, 0, z)).norm() - s.radius;
+      break;
+    }
+    case ShapeType::Box: out = (q.cwiseAbs() - s.half_extents).maxCoeff(); break;
+  }
+  // The triangle's point: its barycentric coordinates (least squares in the plane) and its
+  // height off the plane.
+  const Vec3 e1 = b - a, e2 = c - a, d = cp.p_triangle - a;
+  Eigen::Matrix<double, 3, 2> E;
+  E << e1, e2;
+  const Eigen::Vector2d w = E.colPivHouseholderQr().solve(d);
+  const double off_plane = (E * w - d).norm();
+  const double bary_out = std::max({0.0, -w[0], -w[1], w[0] + w[1] - 1.0}) * std::max(e1.norm(), e2.norm());
+  k.inside = out <= 1e-12 && off_plane <= 1e-12 && bary_out <= 1e-12;
+  k.upper = (cp.p_shape - cp.p_triangle).norm();
+  const Vec3 n = cp.n.normalized();
+  double low = n.dot(X_MB.p);  // the shape's lowest point along n
+  switch (s.type) {
+    case ShapeType::Sphere: low -= s.radius; break;
+    case ShapeType::Capsule: low -= s.half_length * std::abs(n.dot(R.col(2))) + s.radius; break;
+    case ShapeType::Box:
+      for (int j = 0; j < 3; ++j) low -= s.half_extents[j] * std::abs(n.dot(R.col(j)));
+      break;
+  }
+  k.lower = low - std::max({n.dot(a), n.dot(b), n.dot(c)});
+  return k;
+}
+
 TEST(Distance, ShapeTriangleMatchesFcl) {
   Rng rng(6);
   double max_err[3] = {0, 0, 0};
+  int fcl_off[3] = {0, 0, 0};
   int compared = 0, collide_agree = 0, collide_total = 0;
   for (int i = 0; i < 1500; ++i) {
     Case k = randomCase(rng, 3 * (8 * (i / 3) + 5 + (i / 3) % 3) + i % 3);  // kind "random"
@@ -337,16 +384,30 @@ TEST(Distance, ShapeTriangleMatchesFcl) {
     fcl::DistanceResultd res;
     fcl::distance(geom.get(), fclPose(k.X_MB), model.get(), fcl::Transform3d::Identity(), req, res);
     const int t = static_cast<int>(k.shape.type);
-    max_err[t] = std::max(max_err[t], std::abs(res.min_distance - cp.distance));
-    // FCL's GJK is iterative: ours must never be larger than FCL's (beyond round-off) and close.
-    EXPECT_LE(cp.distance, res.min_distance + 1e-9);
-    EXPECT_NEAR(cp.distance, res.min_distance, 1e-6);
+    // Every separated answer is certified exact (above), whatever FCL says.
+    const Certificate cert = certify(k.shape, k.X_MB, k.a, k.b, k.c, cp);
+    EXPECT_TRUE(cert.inside) << "case " << i;
+    EXPECT_NEAR(cert.upper, cp.distance, 1e-12) << "case " << i;
+    EXPECT_NEAR(cert.lower, cp.distance, 1e-12) << "case " << i;
+    // FCL's GJK is iterative: ours must never be larger than FCL's (beyond round-off) and close,
+    // except where FCL stopped early: seen for boxes, FCL 0.19 mm and 3 µm too far with a
+    // witness point 3 and 13 mm outside the box (an SLSQP QP agreed with ours to 3e-18). Those
+    // are counted; the certificate above is what holds ours to the exact distance there.
+    EXPECT_LE(cp.distance, res.min_distance + 1e-9) << "case " << i;
+    if (std::abs(cp.distance - res.min_distance) > 1e-6) {
+      ++fcl_off[t];
+    } else {
+      max_err[t] = std::max(max_err[t], std::abs(res.min_distance - cp.distance));
+    }
     ++compared;
   }
   std::printf("[figure] shape-triangle vs FCL (GJK, tolerance 1e-12) over %d separated cases: max |err| capsule %.3g, "
-              "sphere %.3g, box %.3g m; collision agreement %d/%d\n",
-              compared, max_err[0], max_err[1], max_err[2], collide_agree, collide_total);
+              "sphere %.3g, box %.3g m where FCL came within 1e-6 m; FCL off by more (ours certified exact) in %d capsule, "
+              "%d sphere, %d box cases; collision agreement %d/%d\n",
+              compared, max_err[0], max_err[1], max_err[2], fcl_off[0], fcl_off[1], fcl_off[2], collide_agree, collide_total);
   EXPECT_EQ(collide_agree, collide_total);
+  // FCL's misses stay rare (2 of ~1,200 boxes on this seed): a rise is FCL's or ours to look at.
+  EXPECT_LE(fcl_off[0] + fcl_off[1] + fcl_off[2], compared / 100);
 }
 
 TEST(Distance, DenseSamplingNeverBeatsExactDistance) {
