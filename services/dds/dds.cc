@@ -359,6 +359,8 @@ struct Participant::Core {
   std::uint64_t data_events = 0;
   std::uint64_t seen_events = 0;
   bool woken = false;
+  // What the readers' listeners were told (Participant::samplesLost / samplesRejected).
+  std::atomic<std::uint64_t> samples_lost{0}, samples_rejected{0};
 
   void notifyData() {
     {
@@ -536,6 +538,8 @@ Participant::~Participant() {
 }
 
 int Participant::domain() const { return core_->options.domain; }
+std::uint64_t Participant::samplesLost() const { return core_->samples_lost.load(std::memory_order_relaxed); }
+std::uint64_t Participant::samplesRejected() const { return core_->samples_rejected.load(std::memory_order_relaxed); }
 const std::string& Participant::profilesFile() const { return core_->profiles_file; }
 
 ParticipantInfo Participant::info() const {
@@ -700,10 +704,29 @@ class DataListener : public fdds::DataReaderListener {
  public:
   explicit DataListener(Participant::Core* core) : core_(core) {}
   void on_data_available(fdds::DataReader*) override { core_->notifyData(); }
+  // (The totals are this reader's, cumulative: their growth goes to the participant's sums.)
+  void on_sample_lost(fdds::DataReader*, const fdds::SampleLostStatus& status) override {
+    const std::uint64_t total = status.total_count > 0 ? static_cast<std::uint64_t>(status.total_count) : 0;
+    if (total > lost_) core_->samples_lost.fetch_add(total - lost_, std::memory_order_relaxed);
+    lost_ = std::max(lost_, total);
+  }
+  void on_sample_rejected(fdds::DataReader*, const eprosima::fastrtps::SampleRejectedStatus& status) override {
+    const std::uint64_t total = status.total_count;
+    if (total > rejected_) core_->samples_rejected.fetch_add(total - rejected_, std::memory_order_relaxed);
+    rejected_ = std::max(rejected_, total);
+  }
 
  private:
   Participant::Core* core_;
+  std::uint64_t lost_ = 0, rejected_ = 0;  // this reader's totals seen so far (one listener thread)
 };
+
+// What each reader listens to: data, and the samples DDS gave up on.
+fdds::StatusMask listenedStatus() {
+  fdds::StatusMask m = fdds::StatusMask::data_available();
+  m << fdds::StatusMask::sample_lost() << fdds::StatusMask::sample_rejected();
+  return m;
+}
 }  // namespace
 
 template <class T>
@@ -749,10 +772,10 @@ Reader<T>::Reader(Participant& participant, const std::string& topic, const std:
     if (rl.max_samples_per_instance > 0) rl.max_samples_per_instance = std::max(rl.max_samples_per_instance, keep_last);
     if (rl.max_samples > 0 && rl.max_instances > 0 && rl.max_samples_per_instance > 0)
       rl.max_samples = std::max(rl.max_samples, rl.max_instances * rl.max_samples_per_instance);
-    impl_->reader = c.subscriber->create_datareader(t, qos, impl_->listener.get(), fdds::StatusMask::data_available());
+    impl_->reader = c.subscriber->create_datareader(t, qos, impl_->listener.get(), listenedStatus());
   } else {
     impl_->reader =
-        c.subscriber->create_datareader_with_profile(t, profile, impl_->listener.get(), fdds::StatusMask::data_available());
+        c.subscriber->create_datareader_with_profile(t, profile, impl_->listener.get(), listenedStatus());
   }
   if (impl_->reader == nullptr)
     throw DdsError(std::string(kPrefix) + "Fast DDS could not create a reader on " + inQuotes(topic) +

@@ -86,6 +86,12 @@ class Participant {
   int domain() const;
   const std::string& profilesFile() const;  // the file the profiles came from (resolved)
   ParticipantInfo info() const;
+  // Samples Fast DDS reported to this participant's readers as lost (a reliable writer no longer
+  // had one a reader missed; best effort: a gap in the sequence) or rejected (the reader's
+  // resource limits were full), summed over its readers: what the services' exit lines print, so
+  // that a lock-step frame that never came says whether DDS gave it up or never reported it.
+  std::uint64_t samplesLost() const;
+  std::uint64_t samplesRejected() const;
 
   // Blocks until a Reader of this participant receives data after the previous call returned,
   // the deadline passes, or wake() is called. True when data arrived (then take() from the

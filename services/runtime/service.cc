@@ -160,6 +160,10 @@ int Service::finish(int code, const std::string& why) {
                static_cast<unsigned long long>(late), static_cast<unsigned long long>(deadline_misses));
   for (const auto& r : rejects_)
     std::fprintf(stderr, "%s:   rejected %llu: %s\n", name_.c_str(), static_cast<unsigned long long>(r.second), r.first.c_str());
+  if (participant_)
+    std::fprintf(stderr, "%s:   DDS: samples lost %llu, rejected by the readers' limits %llu\n", name_.c_str(),
+                 static_cast<unsigned long long>(participant_->samplesLost()),
+                 static_cast<unsigned long long>(participant_->samplesRejected()));
   heartbeat(code == 0 ? "stopping" : "failed", true);
   // The last heartbeat carries the final counters (the launch report's): not lost with the writer
   // when the process exits right after (a short lock-step run had sent only "starting" before).
