@@ -704,21 +704,25 @@ class DataListener : public fdds::DataReaderListener {
  public:
   explicit DataListener(Participant::Core* core) : core_(core) {}
   void on_data_available(fdds::DataReader*) override { core_->notifyData(); }
-  // (The totals are this reader's, cumulative: their growth goes to the participant's sums.)
+  // (The totals are this reader's, cumulative: their growth goes to the participant's sums. The
+  // callbacks may come from more than one receive thread, hence the lock; they are rare.)
   void on_sample_lost(fdds::DataReader*, const fdds::SampleLostStatus& status) override {
     const std::uint64_t total = status.total_count > 0 ? static_cast<std::uint64_t>(status.total_count) : 0;
+    std::lock_guard<std::mutex> lock(mutex_);
     if (total > lost_) core_->samples_lost.fetch_add(total - lost_, std::memory_order_relaxed);
     lost_ = std::max(lost_, total);
   }
   void on_sample_rejected(fdds::DataReader*, const eprosima::fastrtps::SampleRejectedStatus& status) override {
     const std::uint64_t total = status.total_count;
+    std::lock_guard<std::mutex> lock(mutex_);
     if (total > rejected_) core_->samples_rejected.fetch_add(total - rejected_, std::memory_order_relaxed);
     rejected_ = std::max(rejected_, total);
   }
 
  private:
   Participant::Core* core_;
-  std::uint64_t lost_ = 0, rejected_ = 0;  // this reader's totals seen so far (one listener thread)
+  std::mutex mutex_;
+  std::uint64_t lost_ = 0, rejected_ = 0;  // this reader's totals seen so far
 };
 
 // What each reader listens to: data, and the samples DDS gave up on.

@@ -258,6 +258,39 @@ int runChild(const std::string& role, int domain) {
     dds::Reader<msg::HandState> r(b, dds::topic::kHandState, dds::profile::kState);
     return waitFor([&] { return w.matched() == 1 && r.matched() == 1; }, deadline - Clock::now()) ? 0 : 3;
   }
+  if (role == "limited-reader") {  // DdsLosses: profiles from $GODHAND_DDS_TEST_PROFILES
+    const char* file = std::getenv("GODHAND_DDS_TEST_PROFILES");
+    if (file == nullptr) return 5;
+    dds::Options oa = options(domain, "test/writer"), ob = options(domain, "test/limited");
+    oa.profiles = ob.profiles = file;
+    dds::Participant a(oa);
+    dds::Participant b(ob);
+    dds::Writer<msg::HandTarget> w(a, dds::topic::kHandTarget, dds::profile::kLockStep);
+    dds::Reader<msg::HandTarget> r(b, dds::topic::kHandTarget, "test.two_samples");
+    // Both sides matched: a (volatile) reader the writer has not matched yet would not get the
+    // samples written before (seen: 1 run in 40, neither a rejection nor the 4 samples).
+    if (!waitFor([&] { return r.matched() == 1 && w.matched() == 1; }, kMatchDeadline)) return 3;
+    msg::HandTarget t;
+    t.targets().assign(16, pose(0.3));
+    constexpr int kSent = 4;
+    for (std::uint64_t f = 1; f <= kSent; ++f) {
+      t.stamp().frame(f);
+      if (!w.write(t)) return 4;
+    }
+    if (!waitFor([&] { return b.samplesRejected() > 0; }, kDataDeadline)) return 10;
+    std::vector<msg::HandTarget> got;
+    const bool all = takeN(b, r, kSent, &got, 2 * kDataDeadline);
+    std::printf("[figure] a reader holding 2 samples, %d sent: %zu arrived within %lld s%s, %llu rejections, %llu lost\n",
+                kSent, got.size(), static_cast<long long>(std::chrono::duration_cast<std::chrono::seconds>(2 * kDataDeadline).count()),
+                all ? "" : " (the rest not re-sent in time)", static_cast<unsigned long long>(b.samplesRejected()),
+                static_cast<unsigned long long>(b.samplesLost()));
+    if (got.size() < 2) return 11;
+    for (std::size_t i = 0; i < got.size(); ++i)
+      if (got[i].stamp().frame() != i + 1) return 12;
+    if (b.samplesLost() != 0) return 13;
+    if (a.samplesLost() + a.samplesRejected() != 0) return 14;  // the writer's side has no reader
+    return 0;
+  }
   dds::Participant p(options(domain, "test/child-" + role));
   if (role == "state-writer") {
     dds::Writer<msg::HandState> w(p, dds::topic::kHandState, dds::profile::kState);
@@ -669,9 +702,10 @@ TEST(DdsTopics, WritersAndReadersShareTopicsWithinAParticipant) {
 // not read while a reliable writer sends 4: Fast DDS rejects what does not fit (counted), none is
 // reported lost, and the two that fit arrive, in order. The writer sends the rejected ones again
 // later (at a heartbeat, every 3 s by default), and they usually arrive too, but not always
-// within 20 s: 1 run in ~100 here (with 10 samples, 2 more arrived per heartbeat: 4-7 of 10 within
-// 20 s). So that part is reported, not asserted. (The shipped profiles' readers are KEEP_LAST,
-// which replaces the oldest sample instead of rejecting one.)
+// within 10 s: about 1 run in 100 here (with 10 samples, 2 more arrived per heartbeat: 4-7 of 10
+// within 20 s). So that part is reported, not asserted. (The shipped profiles' readers are
+// KEEP_LAST, which replaces the oldest sample instead of rejecting one.) In a child process (role
+// "limited-reader"): its profiles file is not the shipped one, and a process has one.
 TEST(DdsLosses, SamplesAReaderCannotHoldAreCountedAsRejected) {
   std::ifstream in(kLocal);
   std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -695,37 +729,17 @@ TEST(DdsLosses, SamplesAReaderCannotHoldAreCountedAsRejected) {
   ASSERT_NE(mkdtemp(dir), nullptr);
   const std::string file = std::string(dir) + "/limited.xml";
   std::ofstream(file) << xml;
-  dds::Options oa = options(219, "test/writer"), ob = options(219, "test/limited");
-  oa.profiles = ob.profiles = file;
-  {
-    dds::Participant a(oa);
-    dds::Participant b(ob);
-    dds::Writer<msg::HandTarget> w(a, dds::topic::kHandTarget, dds::profile::kLockStep);
-    dds::Reader<msg::HandTarget> r(b, dds::topic::kHandTarget, "test.two_samples");
-    // Both sides matched: a (volatile) reader the writer has not matched yet would not get the
-    // samples written before (seen: 1 run in 40, neither a rejection nor the 4 samples).
-    ASSERT_TRUE(waitFor([&] { return r.matched() == 1 && w.matched() == 1; }, kMatchDeadline));
-    msg::HandTarget t;
-    t.targets().assign(16, pose(0.3));
-    constexpr int kSent = 4;
-    for (std::uint64_t f = 1; f <= kSent; ++f) {
-      t.stamp().frame(f);
-      ASSERT_TRUE(w.write(t));
-    }
-    EXPECT_TRUE(waitFor([&] { return b.samplesRejected() > 0; }, kDataDeadline)) << "no rejection reported";
-    std::vector<msg::HandTarget> got;
-    const bool all = takeN(b, r, kSent, &got, 4 * kDataDeadline);
-    std::printf("[figure] a reader holding 2 samples, %d sent: %zu arrived within %lld s%s, %llu rejections, %llu lost\n",
-                kSent, got.size(), static_cast<long long>(std::chrono::duration_cast<std::chrono::seconds>(4 * kDataDeadline).count()),
-                all ? "" : " (the rest not re-sent in time)", static_cast<unsigned long long>(b.samplesRejected()),
-                static_cast<unsigned long long>(b.samplesLost()));
-    ASSERT_GE(got.size(), 2u) << "the two samples the reader's history holds";
-    for (std::size_t i = 0; i < got.size(); ++i) EXPECT_EQ(got[i].stamp().frame(), i + 1);
-    EXPECT_EQ(b.samplesLost(), 0u);
-    EXPECT_EQ(a.samplesLost() + a.samplesRejected(), 0u);  // the writer's side has no reader
-  }
+  const pid_t child = spawnChild("limited-reader", 219, {"GODHAND_DDS_TEST_PROFILES=" + file});
+  ASSERT_GT(child, 0);
+  Children guard;
+  guard.add(child);
+  const int code = waitChild(child, kChildDeadline);
+  guard.waited(child);
   std::remove(file.c_str());
   rmdir(dir);
+  EXPECT_EQ(code, 0) << "10: no rejection reported, 11: fewer than the 2 held arrived, 12: out of order, "
+                        "13: a sample reported lost, 14: the writer's participant counted something, "
+                        "3: not matched, -1: killed at the deadline";
 }
 
 TEST(DdsWait, DeadlineWakeAndNoLostWakeUp) {
