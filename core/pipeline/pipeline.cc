@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <exception>
 #include <stdexcept>
 
 #include "physics/physics_world.h"
@@ -28,8 +29,10 @@ Pipeline::Pipeline(const Scene& scene, std::vector<const HandModel*> hands, Pipe
   // may spread its bodies over all the threads (PipelineParams::body_threads): a hand whose frame
   // is light (free, or untracked) leaves its core to the other hand's bodies. (Threads / hands,
   // i.e. one each on two cores, left the busy hand on one core: two hands on the bunny 263-267 Hz
-  // against 300-349 Hz now; on the default scene, where both hands are busy, 784-822 against
-  // 736-792 Hz: oversubscribed, they cost each other a little.)
+  // against 300-349 Hz with body threads of each hand's own; on the default scene, where both
+  // hands are busy, 784-822 against 736-792 Hz: oversubscribed, they cost each other a little.)
+  // With two or more hands the bodies' jobs go through one JobShare instead (below): no hand has
+  // threads of its own, a thread that is done with its hands helps the others.
   const int threads = params_.trace > 0 ? 1 : std::min(params_.threads, static_cast<int>(std::max<size_t>(1, models_.size())));
   params_.body_threads = params_.trace > 0 ? 1 : std::max(params_.body_threads, params_.threads);
   for (const HandModel* m : models_) {
@@ -48,6 +51,30 @@ Pipeline::Pipeline(const Scene& scene, std::vector<const HandModel*> hands, Pipe
     const size_t i = static_cast<size_t>(h);
     proposals_[i] = &solvers_[i]->step(*inputs_[i], frame_);
   };
+  if (threads >= 2 && solvers_.size() >= 2) {
+    // Each thread of the pool takes hands while any is left, then helps the hands still running
+    // with their bodies' queries (JobShare): a light hand's core goes to the heavy hand's bodies
+    // once it is done, and never competes with them before (each hand's own body threads did:
+    // confidence2 over the bunny, see README).
+    share_ = std::make_unique<JobShare>(static_cast<int>(solvers_.size()), threads);
+    for (size_t h = 0; h < solvers_.size(); ++h) solvers_[h]->useShare(share_.get(), static_cast<int>(h));
+    solve_hands_shared_ = [this](int, int thread) {
+      const int n = static_cast<int>(solvers_.size());
+      std::exception_ptr error;
+      for (int h = next_hand_.fetch_add(1); h < n; h = next_hand_.fetch_add(1)) {
+        try {
+          solvers_[static_cast<size_t>(h)]->setShareThread(thread);
+          solve_hand_(h);
+        } catch (...) {
+          if (!error) error = std::current_exception();
+        }
+        hands_done_.fetch_add(1);
+      }
+      const int total = n;
+      share_->help(thread, [this, total] { return hands_done_.load() >= total; });
+      if (error) std::rethrow_exception(error);
+    };
+  }
 }
 
 Pipeline::~Pipeline() = default;
@@ -75,7 +102,13 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
   inputs_.resize(inputs.size());
   for (size_t h = 0; h < inputs.size(); ++h) inputs_[h] = &inputs[h];
   frame_ = frame;
-  workers_->run(static_cast<int>(solvers_.size()), solve_hand_);
+  if (share_) {
+    next_hand_.store(0);
+    hands_done_.store(0);
+    workers_->runSlots(share_->threads(), solve_hands_shared_);
+  } else {
+    workers_->run(static_cast<int>(solvers_.size()), solve_hand_);
+  }
   // resolver
   resolver_->resolve(proposals_, frame);
   for (size_t h = 0; h < solvers_.size(); ++h) solvers_[h]->adopt(resolver_->result(static_cast<int>(h)));

@@ -31,7 +31,9 @@
 // the same stages and pass the same structs over Fast DDS.
 #pragma once
 
+#include <atomic>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <vector>
 
@@ -128,6 +130,11 @@ class Pipeline {
   std::vector<const HandInput*> inputs_;
   std::uint64_t frame_ = 0;
   std::function<void(int)> solve_hand_;
+  // Two or more hands on two or more threads: each pool thread takes hands, then helps the
+  // others' bodies through share_ (JobShare) until every hand is done.
+  std::unique_ptr<JobShare> share_;
+  std::function<void(int, int)> solve_hands_shared_;
+  std::atomic<int> next_hand_{0}, hands_done_{0};
   std::vector<const HandProposal*> proposals_;
   FrameReport report_;
   PipelineCounters counters_;

@@ -143,7 +143,19 @@ void HandSolver::forEachBody(const F& f, int busy) {
   const std::function<void(int, int)> job = [this, &f](int b, int slot) {
     f(static_cast<size_t>(b), slot == 0 ? collision_ : *slot_worlds_[static_cast<size_t>(slot - 1)]);
   };
-  workers_->runSlots(n, job);
+  if (share_)
+    share_->run(share_lane_, share_thread_, n, job);
+  else
+    workers_->runSlots(n, job);
+}
+
+void HandSolver::useShare(JobShare* share, int lane) {
+  if (!share || share->threads() - 1 > static_cast<int>(slot_worlds_.size()))
+    throw std::invalid_argument("HandSolver::useShare: more threads than collision worlds");
+  share_ = share;
+  share_lane_ = lane;
+  share_thread_ = 0;
+  workers_ = std::make_unique<Workers>(1);  // its own body threads are not needed any more
 }
 
 void HandSolver::addCosts(std::vector<ObjectCost>* sum) const {

@@ -286,6 +286,12 @@ class HandSolver {
   /// new target (which the sweep would never see). No-op once started or for an unstarted result.
   void resume(const HandResult& result);
   const HandProposal& step(const HandInput& input, std::uint64_t frame);
+  /// From now on the bodies' queries are jobs of `share`'s lane `lane` (taken by this solver's
+  /// thread and by the pool's idle threads) instead of this solver's own body threads; the pool
+  /// names the thread each step() runs on with setShareThread(). Throws std::invalid_argument
+  /// where the share has more threads than the solver has collision worlds (body_threads).
+  void useShare(JobShare* share, int lane);
+  void setShareThread(int thread) { share_thread_ = thread; }
 
   bool started() const { return started_; }
   const ClusterStepper& stepper() const { return *stepper_; }
@@ -387,6 +393,9 @@ class HandSolver {
   std::unique_ptr<ClusterStepper> stepper_;
   std::unique_ptr<Workers> workers_;                    // body threads (PipelineParams::body_threads)
   std::vector<std::unique_ptr<CollisionWorld>> slot_worlds_;  // threads 1 …: their own collision worlds
+  JobShare* share_ = nullptr;  // useShare: the pool's job share (instead of workers_), its lane,
+  int share_lane_ = 0;         // and the pool thread the current step runs on
+  int share_thread_ = 0;
   std::vector<std::vector<Contact>> body_contacts_;     // per body, merged in body order
   std::vector<geo::SweepResult> body_sweeps_;           // per body
   std::vector<unsigned char> certified_;                // per body: clearOf its motion (no query)

@@ -113,4 +113,87 @@ void Workers::runSlots(int n, const std::function<void(int, int)>& job) {
   if (e) std::rethrow_exception(e);
 }
 
+// ---------------------------------------------------------------------------------------------
+// JobShare
+
+struct JobShare::Lane {
+  // Set by the owner before it posts the lane, read by helpers only while posted (users > 0).
+  const std::function<void(int, int)>* job = nullptr;
+  int n = 0;
+  int owner = 0;
+  std::atomic<int> next{0};
+  std::atomic<int> unfinished{0};
+  std::atomic<int> users{0};   ///< helpers between their check of `posted` and their last job
+  std::atomic<bool> posted{false};
+  std::mutex error_mutex;
+  std::exception_ptr error;
+};
+
+JobShare::JobShare(int lanes, int threads) : threads_(threads) {
+  if (lanes < 1) throw std::invalid_argument("lanes must be at least 1");
+  if (threads < 1 || threads > 64) throw std::invalid_argument("threads must be in [1, 64]");
+  for (int l = 0; l < lanes; ++l) lanes_.push_back(std::make_unique<Lane>());
+}
+
+JobShare::~JobShare() = default;
+
+bool JobShare::take(Lane& lane, int thread) {
+  // The owner's slot is 0; a helper's is its thread index, shifted past the owner's.
+  const int slot = thread == lane.owner ? 0 : thread < lane.owner ? thread + 1 : thread;
+  bool ran = false;
+  for (;;) {
+    const int i = lane.next.fetch_add(1);
+    if (i >= lane.n) return ran;
+    ran = true;
+    try {
+      (*lane.job)(i, slot);
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(lane.error_mutex);
+      if (!lane.error) lane.error = std::current_exception();
+    }
+    lane.unfinished.fetch_sub(1);
+  }
+}
+
+void JobShare::run(int lane_index, int thread, int n, const std::function<void(int, int)>& job) {
+  if (lane_index < 0 || lane_index >= static_cast<int>(lanes_.size()))
+    throw std::invalid_argument("JobShare::run: no such lane");
+  if (thread < 0 || thread >= threads_) throw std::invalid_argument("JobShare::run: no such thread");
+  if (n <= 0) return;
+  Lane& lane = *lanes_[static_cast<size_t>(lane_index)];
+  lane.job = &job;
+  lane.n = n;
+  lane.owner = thread;
+  lane.error = nullptr;
+  lane.next.store(0);
+  lane.unfinished.store(n);
+  lane.posted.store(true);  // (sequentially consistent: the fields above are seen by whoever sees this)
+  take(lane, thread);
+  // A helper may still run the last jobs: at most one each.
+  while (lane.unfinished.load() > 0) std::this_thread::yield();
+  lane.posted.store(false);
+  // A helper that saw the lane posted may not have left it yet (it finds no job left): the lane
+  // is not reset under it.
+  while (lane.users.load() > 0) std::this_thread::yield();
+  std::exception_ptr e = lane.error;
+  lane.error = nullptr;
+  if (e) std::rethrow_exception(e);
+}
+
+void JobShare::help(int thread, const std::function<bool()>& done) {
+  if (thread < 0 || thread >= threads_) throw std::invalid_argument("JobShare::help: no such thread");
+  while (!done()) {
+    bool ran = false;
+    for (const auto& l : lanes_) {
+      Lane& lane = *l;
+      if (!lane.posted.load()) continue;
+      lane.users.fetch_add(1);
+      // Checked again once counted: a lane the owner has taken down (and may be resetting) is left.
+      if (lane.posted.load()) ran = take(lane, thread) || ran;
+      lane.users.fetch_sub(1);
+    }
+    if (!ran) std::this_thread::yield();
+  }
+}
+
 }  // namespace godhand

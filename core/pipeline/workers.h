@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <exception>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <thread>
 #include <vector>
@@ -54,6 +55,43 @@ class Workers {
   std::atomic<bool> stop_{false};
   std::atomic<int> unfinished_{0};  ///< jobs of the current call not finished yet
   std::exception_ptr error_;
+};
+
+/// Per-body jobs of several owners (the hands' solvers, each running on one thread of a pool),
+/// shared with the pool's threads that have run out of work of their own. An owner posts its
+/// jobs in its lane and takes them itself, a helper takes what is left of any posted lane, so a
+/// light hand's thread finishes its own hand and then works on the heavy hand's bodies, and no
+/// core is oversubscribed (a hand with its own body threads competes with the other hand's
+/// thread for the two cores: a thread the scheduler takes off in the middle of a job holds its
+/// hand's next phase up to a time slice). Each job is told the slot it runs in: 0 for the owner,
+/// 1 .. threads − 1 for a helper (distinct among the helpers of one owner: the thread's own
+/// index, skipping the owner's), for per-slot scratch. No allocation per call.
+class JobShare {
+ public:
+  /// lanes: owners that may post at once; threads: the pool's threads (owners and helpers).
+  /// Throws std::invalid_argument on lanes < 1 or threads outside [1, 64].
+  JobShare(int lanes, int threads);
+  ~JobShare();
+  JobShare(const JobShare&) = delete;
+  JobShare& operator=(const JobShare&) = delete;
+
+  int threads() const { return threads_; }
+  /// Owner side, from pool thread `thread` (0 .. threads − 1): job(i, slot) for every i in
+  /// [0, n), each exactly once; returns when all have finished. The first exception a job throws
+  /// is rethrown here (the others still run). One call at a time per lane.
+  void run(int lane, int thread, int n, const std::function<void(int job, int slot)>& job);
+  /// Helper side, from pool thread `thread`: takes posted jobs until done() holds (polled;
+  /// yields the core whenever nothing is posted).
+  void help(int thread, const std::function<bool()>& done);
+
+ private:
+  struct Lane;
+  /// Takes jobs of `lane` (posted: checked under its users count) until none is left; true if it
+  /// ran any.
+  bool take(Lane& lane, int thread);
+
+  int threads_;
+  std::vector<std::unique_ptr<Lane>> lanes_;
 };
 
 }  // namespace godhand

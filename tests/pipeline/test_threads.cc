@@ -9,6 +9,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstring>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -174,6 +175,127 @@ TEST(Threads, AJobsExceptionComesBackAfterTheOthersRan) {
   p.threads = 1;
   p.body_threads = 0;
   EXPECT_THROW(p.validate(), std::invalid_argument);
+}
+
+// JobShare: owners on their own threads post jobs, idle threads help. Every job of every call
+// runs exactly once; the owner's jobs run in slot 0 on the owner's thread, a helper's in a slot
+// 1 .. threads − 1 that no other running job of the same owner holds; run() returns only after
+// all of its jobs have finished (a job still running on a helper would be caught by the count).
+TEST(Threads, JobShareRunsEveryJobOnceInExclusiveSlots) {
+  for (int threads : {2, 3, 4}) {
+    for (int owners : {1, threads - 1, threads}) {
+      if (owners < 1) continue;
+      JobShare share(owners, threads);
+      constexpr int kCalls = 100, kJobs = 17;
+      // Per owner: how often each job ran, and which slots are held right now.
+      std::vector<std::vector<std::atomic<int>>> count(static_cast<size_t>(owners));
+      std::vector<std::vector<std::atomic<int>>> held(static_cast<size_t>(owners));
+      for (int o = 0; o < owners; ++o) {
+        count[static_cast<size_t>(o)] = std::vector<std::atomic<int>>(kJobs);
+        held[static_cast<size_t>(o)] = std::vector<std::atomic<int>>(static_cast<size_t>(threads));
+        for (auto& c : count[static_cast<size_t>(o)]) c = 0;
+        for (auto& h : held[static_cast<size_t>(o)]) h = 0;
+      }
+      std::atomic<int> bad_slot{0}, overlap{0}, unfinished_at_return{0}, by_helpers{0}, owners_done{0};
+      auto body = [&](int t) {
+        if (t < owners) {
+          const size_t o = static_cast<size_t>(t);
+          const std::thread::id me = std::this_thread::get_id();
+          for (int call = 0; call < kCalls; ++call) {
+            std::atomic<int> running{0}, helped{0};
+            const std::function<void(int, int)> job = [&](int i, int slot) {
+              ++running;
+              // The owner's first job waits (up to 1 ms) for a helper to take one: the calls
+              // then overlap wherever a helper thread gets a core.
+              if (slot == 0 && i == 0) {
+                const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(1);
+                while (helped.load() == 0 && std::chrono::steady_clock::now() < until) std::this_thread::yield();
+              }
+              if (slot != 0) ++helped;
+              if (slot < 0 || slot >= threads) {
+                ++bad_slot;
+              } else {
+                if ((slot == 0) != (std::this_thread::get_id() == me)) ++bad_slot;  // slot 0: the owner's thread
+                if (held[o][static_cast<size_t>(slot)].fetch_add(1) != 0) ++overlap;
+                if (slot != 0) ++by_helpers;
+                for (volatile int k = 0; k < 200; ++k) {}
+                --held[o][static_cast<size_t>(slot)];
+              }
+              ++count[o][static_cast<size_t>(i)];
+              --running;
+            };
+            share.run(t, t, kJobs, job);
+            if (running.load() != 0) ++unfinished_at_return;
+          }
+          ++owners_done;
+        }
+        share.help(t, [&] { return owners_done.load() >= owners; });
+      };
+      std::vector<std::thread> pool;
+      for (int t = 1; t < threads; ++t) pool.emplace_back(body, t);
+      body(0);
+      for (std::thread& th : pool) th.join();
+      for (int o = 0; o < owners; ++o)
+        for (int i = 0; i < kJobs; ++i)
+          ASSERT_EQ(count[static_cast<size_t>(o)][static_cast<size_t>(i)].load(), kCalls)
+              << threads << " threads, " << owners << " owners: owner " << o << " job " << i;
+      EXPECT_EQ(bad_slot.load(), 0);
+      EXPECT_EQ(overlap.load(), 0) << threads << " threads, " << owners << " owners";
+      EXPECT_EQ(unfinished_at_return.load(), 0);
+      std::printf("[figure] JobShare, %d threads, %d owners: %d of %d jobs run by helpers\n", threads, owners,
+                  by_helpers.load(), owners * kCalls * kJobs);
+    }
+  }
+}
+
+// The owner's slot is 0 and only the owner's thread runs in it; helpers run elsewhere.
+TEST(Threads, JobShareOwnerRunsInSlotZero) {
+  JobShare share(1, 2);
+  std::atomic<bool> stop{false};
+  std::atomic<int> wrong{0};
+  const std::thread::id owner_id = std::this_thread::get_id();
+  std::thread helper([&] { share.help(1, [&] { return stop.load(); }); });
+  for (int call = 0; call < 500; ++call) {
+    const std::function<void(int, int)> job = [&](int, int slot) {
+      const bool on_owner = std::this_thread::get_id() == owner_id;
+      if (on_owner != (slot == 0)) ++wrong;
+      if (slot != 0 && slot != 1) ++wrong;
+    };
+    share.run(0, 0, 9, job);
+  }
+  stop = true;
+  helper.join();
+  EXPECT_EQ(wrong.load(), 0);
+}
+
+TEST(Threads, JobShareHandsBackAJobsExceptionAfterTheOthersRan) {
+  JobShare share(1, 2);
+  std::atomic<bool> stop{false};
+  std::thread helper([&] { share.help(1, [&] { return stop.load(); }); });
+  for (int rep = 0; rep < 50; ++rep) {
+    std::atomic<int> ran{0};
+    const std::function<void(int, int)> job = [&](int i, int) {
+      ++ran;
+      if (i == 3) throw std::runtime_error("job 3 failed");
+    };
+    try {
+      share.run(0, 0, 8, job);
+      ADD_FAILURE() << "no exception";
+    } catch (const std::runtime_error& e) {
+      EXPECT_STREQ(e.what(), "job 3 failed");
+    }
+    EXPECT_EQ(ran.load(), 8);
+  }
+  std::atomic<int> ran{0};
+  share.run(0, 0, 5, [&](int, int) { ++ran; });  // usable after
+  EXPECT_EQ(ran.load(), 5);
+  stop = true;
+  helper.join();
+  EXPECT_THROW(JobShare(0, 2), std::invalid_argument);
+  EXPECT_THROW(JobShare(1, 0), std::invalid_argument);
+  EXPECT_THROW(JobShare(1, 65), std::invalid_argument);
+  EXPECT_THROW(share.run(1, 0, 1, [](int, int) {}), std::invalid_argument);
+  EXPECT_THROW(share.run(0, 2, 1, [](int, int) {}), std::invalid_argument);
 }
 
 }  // namespace
