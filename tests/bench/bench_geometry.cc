@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "../test_rng.h"
 #include "common/files.h"
 #include "scene/mesh_io.h"
 #include "geometry/bvh.h"
@@ -54,36 +55,12 @@ Shape phalanx() {
 // function arguments and of a binary operator's operands unspecified, so
 // Vec3(draw(), draw(), draw()) or draw() * draw() gives gcc and clang different
 // poses and points from one seed.
-struct Rng {
-  std::mt19937_64 gen{12345};
-  double uniform(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(gen); }
-  Quat rotation() {
-    std::normal_distribution<double> n(0.0, 1.0);
-    const double w = n(gen);
-    const double x = n(gen);
-    const double y = n(gen);
-    const double z = n(gen);
-    return Quat(w, x, y, z).normalized();
-  }
-  Vec3 direction() {
-    std::normal_distribution<double> n(0.0, 1.0);
-    const double x = n(gen);
-    const double y = n(gen);
-    const double z = n(gen);
-    return Vec3(x, y, z).normalized();
-  }
-  Vec3 inBox(const Aabb& b) {
-    const double x = uniform(b.lo.x(), b.hi.x());
-    const double y = uniform(b.lo.y(), b.hi.y());
-    const double z = uniform(b.lo.z(), b.hi.z());
-    return Vec3(x, y, z);
-  }
-};
+using test_support::Rng;
 
 /// Poses whose capsule distance to the bunny lies in [lo, hi] (rejection sampling around random
 /// surface points).
 std::vector<Pose> posesAtDistance(double lo, double hi, int count, unsigned seed) {
-  Rng rng;
+  Rng rng{12345};
   rng.gen.seed(seed);
   const MeshBvh& bvh = bunny();
   const TriangleMesh& m = bvh.mesh();
@@ -114,7 +91,7 @@ struct Motion {
 /// One step of a phalanx: ≤ 1 cm translation, ≤ 0.3 rad rotation. kind 0: far (d ≥ 1 cm);
 /// 1: approaching the surface from 2–6 mm; 2: resting 0.1 mm above and sliding tangentially.
 std::vector<Motion> motions(int kind, int count, unsigned seed) {
-  Rng rng;
+  Rng rng{12345};
   rng.gen.seed(seed + 7);
   std::vector<Pose> starts = kind == 0 ? posesAtDistance(0.01, 0.03, count, seed)
                                        : kind == 1 ? posesAtDistance(0.002, 0.006, count, seed)
@@ -202,7 +179,7 @@ BENCHMARK(BM_BunnySweep)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
 void BM_BunnyWindingNumber(benchmark::State& state) {
   static const std::vector<Vec3> points = [] {
     std::vector<Vec3> p;
-    Rng rng;
+    Rng rng{12345};
     const Aabb b = bunny().bounds();
     for (int i = 0; i < 1000; ++i)
       p.push_back(rng.inBox(b));
@@ -268,7 +245,7 @@ void perCallFigures() {
     std::printf("[figure]   iterations median %d, max %d; hits %d/%zu\n", iters[iters.size() / 2], iters.back(), hits,
                 ms.size());
   }
-  Rng rng;
+  Rng rng{12345};
   const Aabb b = bvh.bounds();
   std::vector<Vec3> pts;
   for (int i = 0; i < 1000; ++i)

@@ -11,6 +11,7 @@
 #include <memory>
 #include <random>
 
+#include "../test_rng.h"
 #include "geometry/distance.h"
 #include "geometry/mesh.h"
 
@@ -20,27 +21,7 @@ namespace {
 // Draws are taken one per statement (x, then y, then z): C++ leaves the order of
 // function arguments and of a binary operator's operands unspecified, so
 // Vec3(draw(), draw(), draw()) gives gcc and clang different instances from one seed.
-struct Rng {
-  std::mt19937_64 gen;
-  explicit Rng(unsigned seed) : gen(seed) {}
-  double uniform(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(gen); }
-  int integer(int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(gen); }
-  Vec3 vec(double half) {
-    const double x = uniform(-half, half);
-    const double y = uniform(-half, half);
-    const double z = uniform(-half, half);
-    return Vec3(x, y, z);
-  }
-  Quat rotation() {
-    std::normal_distribution<double> n(0.0, 1.0);
-    const double w = n(gen);
-    const double x = n(gen);
-    const double y = n(gen);
-    const double z = n(gen);
-    Quat q(w, x, y, z);
-    return q.normalized();
-  }
-};
+using test_support::Rng;
 
 Shape randomShape(Rng& rng, ShapeType type) {
   Shape s;

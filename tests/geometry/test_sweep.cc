@@ -16,6 +16,7 @@
 #include <sstream>
 #include <string>
 
+#include "../test_rng.h"
 #include "common/files.h"
 #include "scene/mesh_io.h"
 #include "geometry/sweep.h"
@@ -35,27 +36,7 @@ constexpr int kMotionDivisor = 1;
 // function arguments and of a binary operator's operands unspecified, so
 // Vec3(draw(), draw(), draw()) or draw() * draw() gives gcc and clang different
 // instances from one seed.
-struct Rng {
-  std::mt19937_64 gen;
-  explicit Rng(unsigned seed) : gen(seed) {}
-  double uniform(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(gen); }
-  int integer(int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(gen); }
-  Vec3 direction() {
-    std::normal_distribution<double> n(0.0, 1.0);
-    const double x = n(gen);
-    const double y = n(gen);
-    const double z = n(gen);
-    return Vec3(x, y, z).normalized();
-  }
-  Quat rotation() {
-    std::normal_distribution<double> n(0.0, 1.0);
-    const double w = n(gen);
-    const double x = n(gen);
-    const double y = n(gen);
-    const double z = n(gen);
-    return Quat(w, x, y, z).normalized();
-  }
-};
+using test_support::Rng;
 
 // The project's OBJ reader (core/scene/mesh_io), so the tests read the bunny as scenes do.
 TriangleMesh loadObj(const std::string& path) { return godhand::loadMeshFile(path); }
