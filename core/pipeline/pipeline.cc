@@ -57,6 +57,7 @@ Pipeline::Pipeline(const Scene& scene, std::vector<const HandModel*> hands, Pipe
     // once it is done, and never competes with them before (each hand's own body threads did:
     // confidence2 over the bunny, see README).
     share_ = std::make_unique<JobShare>(static_cast<int>(solvers_.size()), threads);
+    // (A one-body tool keeps its body on its own thread: useShare declines.)
     for (size_t h = 0; h < solvers_.size(); ++h) solvers_[h]->useShare(share_.get(), static_cast<int>(h));
     solve_hands_shared_ = [this](int, int thread) {
       const int n = static_cast<int>(solvers_.size());

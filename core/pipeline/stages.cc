@@ -149,13 +149,13 @@ void HandSolver::forEachBody(const F& f, int busy) {
     workers_->runSlots(n, job);
 }
 
-void HandSolver::useShare(JobShare* share, int lane) {
-  if (!share || share->threads() - 1 > static_cast<int>(slot_worlds_.size()))
-    throw std::invalid_argument("HandSolver::useShare: more threads than collision worlds");
+bool HandSolver::useShare(JobShare* share, int lane) {
+  if (!share || slot_worlds_.empty() || share->threads() - 1 > static_cast<int>(slot_worlds_.size())) return false;
   share_ = share;
   share_lane_ = lane;
   share_thread_ = 0;
   workers_ = std::make_unique<Workers>(1);  // its own body threads are not needed any more
+  return true;
 }
 
 void HandSolver::addCosts(std::vector<ObjectCost>* sum) const {

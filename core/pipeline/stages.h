@@ -288,9 +288,11 @@ class HandSolver {
   const HandProposal& step(const HandInput& input, std::uint64_t frame);
   /// From now on the bodies' queries are jobs of `share`'s lane `lane` (taken by this solver's
   /// thread and by the pool's idle threads) instead of this solver's own body threads; the pool
-  /// names the thread each step() runs on with setShareThread(). Throws std::invalid_argument
-  /// where the share has more threads than the solver has collision worlds (body_threads).
-  void useShare(JobShare* share, int lane);
+  /// names the thread each step() runs on with setShareThread(). Only where the solver has a
+  /// collision world for each of the share's helpers (body_threads ≥ the share's threads, and
+  /// more than one body): false, and nothing changed, otherwise (its bodies stay on its own
+  /// threads: a one-body tool on its caller's).
+  bool useShare(JobShare* share, int lane);
   void setShareThread(int thread) { share_thread_ = thread; }
 
   bool started() const { return started_; }
