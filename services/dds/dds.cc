@@ -361,6 +361,16 @@ struct Participant::Core {
   bool woken = false;
   // What the readers' listeners were told (Participant::samplesLost / samplesRejected).
   std::atomic<std::uint64_t> samples_lost{0}, samples_rejected{0};
+  mutable std::mutex losses_mutex;  // guards losses (per topic: lost, rejected)
+  std::map<std::string, std::pair<std::uint64_t, std::uint64_t>> losses;
+  void addLosses(const std::string& topic, std::uint64_t lost, std::uint64_t rejected) {
+    samples_lost.fetch_add(lost, std::memory_order_relaxed);
+    samples_rejected.fetch_add(rejected, std::memory_order_relaxed);
+    std::lock_guard<std::mutex> lock(losses_mutex);
+    auto& e = losses[topic];
+    e.first += lost;
+    e.second += rejected;
+  }
 
   void notifyData() {
     {
@@ -540,6 +550,13 @@ Participant::~Participant() {
 int Participant::domain() const { return core_->options.domain; }
 std::uint64_t Participant::samplesLost() const { return core_->samples_lost.load(std::memory_order_relaxed); }
 std::uint64_t Participant::samplesRejected() const { return core_->samples_rejected.load(std::memory_order_relaxed); }
+std::vector<Participant::TopicLosses> Participant::lossesByTopic() const {
+  std::vector<TopicLosses> out;
+  std::lock_guard<std::mutex> lock(core_->losses_mutex);
+  for (const auto& e : core_->losses)
+    if (e.second.first > 0 || e.second.second > 0) out.push_back(TopicLosses{e.first, e.second.first, e.second.second});
+  return out;
+}
 const std::string& Participant::profilesFile() const { return core_->profiles_file; }
 
 ParticipantInfo Participant::info() const {
@@ -702,25 +719,27 @@ const std::string& Writer<T>::topic() const {
 namespace {
 class DataListener : public fdds::DataReaderListener {
  public:
-  explicit DataListener(Participant::Core* core) : core_(core) {}
+  DataListener(Participant::Core* core, std::string topic) : core_(core), topic_(std::move(topic)) {}
   void on_data_available(fdds::DataReader*) override { core_->notifyData(); }
-  // (The totals are this reader's, cumulative: their growth goes to the participant's sums. The
-  // callbacks may come from more than one receive thread, hence the lock; they are rare.)
+  // (The totals are this reader's, cumulative: their growth goes to the participant's sums, in
+  // all and per topic. The callbacks may come from more than one receive thread, hence the lock;
+  // they are rare.)
   void on_sample_lost(fdds::DataReader*, const fdds::SampleLostStatus& status) override {
     const std::uint64_t total = status.total_count > 0 ? static_cast<std::uint64_t>(status.total_count) : 0;
     std::lock_guard<std::mutex> lock(mutex_);
-    if (total > lost_) core_->samples_lost.fetch_add(total - lost_, std::memory_order_relaxed);
+    if (total > lost_) core_->addLosses(topic_, total - lost_, 0);
     lost_ = std::max(lost_, total);
   }
   void on_sample_rejected(fdds::DataReader*, const eprosima::fastrtps::SampleRejectedStatus& status) override {
     const std::uint64_t total = status.total_count;
     std::lock_guard<std::mutex> lock(mutex_);
-    if (total > rejected_) core_->samples_rejected.fetch_add(total - rejected_, std::memory_order_relaxed);
+    if (total > rejected_) core_->addLosses(topic_, 0, total - rejected_);
     rejected_ = std::max(rejected_, total);
   }
 
  private:
   Participant::Core* core_;
+  std::string topic_;
   std::mutex mutex_;
   std::uint64_t lost_ = 0, rejected_ = 0;  // this reader's totals seen so far
 };
@@ -761,7 +780,7 @@ Reader<T>::Reader(Participant& participant, const std::string& topic, const std:
     : impl_(new Impl) {
   impl_->core = participant.core_;
   impl_->topic = topic;
-  impl_->listener.reset(new DataListener(impl_->core.get()));
+  impl_->listener.reset(new DataListener(impl_->core.get(), topic));
   Participant::Core& c = *impl_->core;
   std::lock_guard<std::mutex> lock(c.entities);
   fdds::Topic* t = c.template topic<typename WireType<T>::PubSub>(topic);

@@ -92,6 +92,13 @@ class Participant {
   // that a lock-step frame that never came says whether DDS gave it up or never reported it.
   std::uint64_t samplesLost() const;
   std::uint64_t samplesRejected() const;
+  // The same per topic (this participant's readers of it summed), topics with none left out, by
+  // topic name: a loss on a lock-step topic is not hidden among the best-effort heartbeats'.
+  struct TopicLosses {
+    std::string topic;
+    std::uint64_t lost = 0, rejected = 0;
+  };
+  std::vector<TopicLosses> lossesByTopic() const;
 
   // Blocks until a Reader of this participant receives data after the previous call returned,
   // the deadline passes, or wake() is called. True when data arrived (then take() from the

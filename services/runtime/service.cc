@@ -164,6 +164,10 @@ int Service::finish(int code, const std::string& why) {
     std::fprintf(stderr, "%s:   DDS: samples lost %llu, rejected by the readers' limits %llu\n", name_.c_str(),
                  static_cast<unsigned long long>(participant_->samplesLost()),
                  static_cast<unsigned long long>(participant_->samplesRejected()));
+  if (participant_)
+    for (const dds::Participant::TopicLosses& t : participant_->lossesByTopic())
+      std::fprintf(stderr, "%s:     of them on %s: lost %llu, rejected %llu\n", name_.c_str(), t.topic.c_str(),
+                   static_cast<unsigned long long>(t.lost), static_cast<unsigned long long>(t.rejected));
   heartbeat(code == 0 ? "stopping" : "failed", true);
   // The last heartbeat carries the final counters (the launch report's): not lost with the writer
   // when the process exits right after (a short lock-step run had sent only "starting" before).

@@ -289,6 +289,13 @@ int runChild(const std::string& role, int domain) {
       if (got[i].stamp().frame() != i + 1) return 12;
     if (b.samplesLost() != 0) return 13;
     if (a.samplesLost() + a.samplesRejected() != 0) return 14;  // the writer's side has no reader
+    // Per topic: all of them on the one topic read, none elsewhere.
+    const std::vector<dds::Participant::TopicLosses> by_topic = b.lossesByTopic();
+    // (The participant's total grows before the topic's, so the total read after is not less.)
+    if (by_topic.size() != 1 || by_topic[0].topic != dds::topic::kHandTarget || by_topic[0].lost != 0 ||
+        by_topic[0].rejected == 0 || by_topic[0].rejected > b.samplesRejected())
+      return 15;
+    if (!a.lossesByTopic().empty()) return 16;
     return 0;
   }
   dds::Participant p(options(domain, "test/child-" + role));
@@ -739,6 +746,7 @@ TEST(DdsLosses, SamplesAReaderCannotHoldAreCountedAsRejected) {
   rmdir(dir);
   EXPECT_EQ(code, 0) << "10: no rejection reported, 11: fewer than the 2 held arrived, 12: out of order, "
                         "13: a sample reported lost, 14: the writer's participant counted something, "
+                        "15: the per-topic count is not the reader's topic's, 16: the writer's has a topic, "
                         "3: not matched, -1: killed at the deadline";
 }
 
