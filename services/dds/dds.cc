@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <map>
 #include <mutex>
+#include <random>
 #include <set>
 #include <utility>
 
@@ -33,6 +34,8 @@
 #include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
 #include <fastdds/rtps/transport/UDPv6TransportDescriptor.h>
 #include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
+#include <fastdds/rtps/transport/ChainingTransport.h>
+#include <fastdds/rtps/transport/ChainingTransportDescriptor.h>
 #include <fastrtps/attributes/ParticipantAttributes.h>
 #include <fastrtps/attributes/PublisherAttributes.h>
 #include <fastrtps/attributes/SubscriberAttributes.h>
@@ -488,6 +491,103 @@ void Participant::checkProfiles(const std::string& path) {
   if (!it->second.empty()) throw DdsError(it->second);
 }
 
+namespace {
+
+// Options::drop_data_percent resolved: the option, or the environment's where it is -1.
+int dropDataPercent(int option) {
+  constexpr const char* kEnv = "GODHAND_DDS_DROP_DATA_PERCENT";
+  if (option >= 0) {
+    if (option > 100) throw DdsError(std::string(kPrefix) + "drop_data_percent " + std::to_string(option) + " is out of range (0..100)");
+    return option;
+  }
+  const char* env = std::getenv(kEnv);
+  if (env == nullptr || *env == '\0') return 0;
+  char* end = nullptr;
+  const long v = std::strtol(env, &end, 10);
+  if (end == env || *end != '\0' || v < 0 || v > 100)
+    throw DdsError(std::string(kPrefix) + kEnv + "=" + inQuotes(env) + " is not a percentage (an integer 0..100)");
+  return static_cast<int>(v);
+}
+
+// Fault injection (Options::drop_data_percent): a transport over the profile's UDPv4 one that
+// loses `percent` % of the datagrams carrying a user writer's DATA or DATA_FRAG submessage, as a
+// lossy network would, and sends everything else (discovery, heartbeats, acknacks, gaps) as it
+// is. (Fast DDS's own test_UDPv4 transport does the same by submessage, but in this build a
+// scene service on it was never matched by the services started after it; plain UDPv4 was.)
+struct LossyDescriptor;
+class LossyTransport : public eprosima::fastdds::rtps::ChainingTransport {
+ public:
+  explicit LossyTransport(const LossyDescriptor& d);
+  eprosima::fastdds::rtps::TransportDescriptorInterface* get_configuration() override;
+  bool send(eprosima::fastrtps::rtps::SenderResource* low, const eprosima::fastrtps::rtps::octet* buffer,
+            std::uint32_t size, eprosima::fastrtps::rtps::LocatorsIterator* begin,
+            eprosima::fastrtps::rtps::LocatorsIterator* end,
+            const std::chrono::steady_clock::time_point& timeout) override {
+    if (carriesUserData(buffer, size) && lose()) return true;  // lost on the way: the sender cannot tell
+    return low->send(buffer, size, begin, end, timeout);
+  }
+  void receive(eprosima::fastdds::rtps::TransportReceiverInterface* next, const eprosima::fastrtps::rtps::octet* buffer,
+               std::uint32_t size, const eprosima::fastrtps::rtps::Locator_t& local,
+               const eprosima::fastrtps::rtps::Locator_t& remote) override {
+    next->OnDataReceived(buffer, size, local, remote);
+  }
+
+ private:
+  // An RTPS message (header: "RTPS", version, vendor, GUID prefix: 20 bytes) with a DATA (0x15)
+  // or DATA_FRAG (0x16) submessage whose writer is not a built-in entity (entity kind 0xC0 bits
+  // clear). Submessage header: id, flags (bit 0: little endian), length (0: to the end).
+  static bool carriesUserData(const eprosima::fastrtps::rtps::octet* b, std::uint32_t size) {
+    if (size < 20 || b[0] != 'R' || b[1] != 'T' || b[2] != 'P' || b[3] != 'S') return false;
+    std::uint32_t pos = 20;
+    while (pos + 4 <= size) {
+      const unsigned id = b[pos], flags = b[pos + 1];
+      const std::uint32_t len = (flags & 1u) ? (b[pos + 2] | (b[pos + 3] << 8)) : ((b[pos + 2] << 8) | b[pos + 3]);
+      const std::uint32_t body = pos + 4;
+      // DATA / DATA_FRAG body: extra flags (2), octets to inline QoS (2), reader id (4), writer id (4).
+      if ((id == 0x15 || id == 0x16) && body + 12 <= size && (b[body + 11] & 0xC0u) == 0) return true;
+      if (len == 0) break;
+      pos = body + len;
+    }
+    return false;
+  }
+  bool lose() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return std::uniform_int_distribution<int>(0, 99)(rng_) < percent_;
+  }
+
+  std::unique_ptr<LossyDescriptor> descriptor_;
+  int percent_;
+  std::mutex mutex_;
+  std::mt19937 rng_;
+};
+
+struct LossyDescriptor : eprosima::fastdds::rtps::ChainingTransportDescriptor {
+  LossyDescriptor(std::shared_ptr<eprosima::fastdds::rtps::TransportDescriptorInterface> low, int lose_percent)
+      : ChainingTransportDescriptor(std::move(low)), percent(lose_percent) {}
+  eprosima::fastdds::rtps::TransportInterface* create_transport() const override { return new LossyTransport(*this); }
+  int percent;
+};
+
+LossyTransport::LossyTransport(const LossyDescriptor& d)
+    : ChainingTransport(d), descriptor_(std::make_unique<LossyDescriptor>(d)), percent_(d.percent), rng_(std::random_device{}()) {}
+eprosima::fastdds::rtps::TransportDescriptorInterface* LossyTransport::get_configuration() { return descriptor_.get(); }
+
+// The profile's UDPv4 transports, each under a LossyTransport; the other transports (shared
+// memory) left out, so that same-host traffic takes the lossy path too.
+void lossyTransports(fdds::DomainParticipantQos& qos, int percent, const std::string& file, const std::string& profile) {
+  std::vector<std::shared_ptr<eprosima::fastdds::rtps::TransportDescriptorInterface>> lossy;
+  for (const auto& d : qos.transport().user_transports)
+    if (std::dynamic_pointer_cast<eprosima::fastdds::rtps::UDPv4TransportDescriptor>(d))
+      lossy.push_back(std::make_shared<LossyDescriptor>(d, percent));
+  if (lossy.empty())
+    throw DdsError(std::string(kPrefix) + "dropping DATA messages needs a UDPv4 user transport; participant profile " +
+                   inQuotes(profile) + " of " + inQuotes(file) + " has none");
+  qos.transport().user_transports = lossy;
+  qos.transport().use_builtin_transports = false;
+}
+
+}  // namespace
+
 Participant::Participant(const Options& options) : core_(std::make_shared<Core>()) {
   Core& c = *core_;
   c.options = options;
@@ -513,6 +613,8 @@ Participant::Participant(const Options& options) : core_(std::make_shared<Core>(
     throw DdsError(std::string(kPrefix) + "Fast DDS has no participant profile " +
                    inQuotes(options.participant_profile) + " (from " + inQuotes(c.profiles_file) + ")");
   if (!options.name.empty()) qos.name(options.name);
+  const int drop = dropDataPercent(options.drop_data_percent);
+  if (drop > 0) lossyTransports(qos, drop, c.profiles_file, options.participant_profile);
   const std::uint64_t mark = errorMark();
   c.participant = c.factory->create_participant(options.domain, qos, nullptr, fdds::StatusMask::none());
   if (c.participant == nullptr)

@@ -45,6 +45,12 @@ struct Options {
   std::string participant_profile = "godhand_participant";
   std::string name;                    // participant name seen by other participants ("solver/right");
                                        // "" = the profile's
+  // Fault injection, for tests of recovery from lost packets: this participant's UDPv4
+  // transports drop this percentage of the DATA messages they send (Fast DDS's test transport;
+  // shared memory is then left out, so that same-host traffic crosses the lossy UDP). 0: none;
+  // -1: $GODHAND_DDS_DROP_DATA_PERCENT if set (an integer 0..100), else none. The repair is
+  // Fast DDS's own (heartbeats, acknacks); a reliable reader still gets every sample.
+  int drop_data_percent = -1;
 };
 
 // What an entity actually got from its profile.
