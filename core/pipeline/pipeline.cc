@@ -71,8 +71,7 @@ Pipeline::Pipeline(const Scene& scene, std::vector<const HandModel*> hands, Pipe
         }
         hands_done_.fetch_add(1);
       }
-      const int total = n;
-      share_->help(thread, [this, total] { return hands_done_.load() >= total; });
+      share_->help(thread, [this, n] { return hands_done_.load() >= n; });
       if (error) std::rethrow_exception(error);
     };
   }

@@ -43,27 +43,48 @@ struct RunResult {
   int threads = 0;
 };
 
-// Both hands of confidence2 on the bunny (0.25 m, centred on the palms: acceptance.sh's
-// twohands-bunny, where both hands press into it), its first 120 frames.
+// confidence2 and the bunny at 0.25 m centred on its palms (acceptance.sh's twohands-bunny, where
+// both hands press into it), with the pipeline's parameters for `threads`.
+struct BunnyCase {
+  leap::Recording rec = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/confidence2-49fps.json");
+  Scene scene = meshScene({parseMeshSpec(std::string(GODHAND_DEPLOY_DIR) + "/meshes/stanford-bunny.obj:0.25")},
+                          rec.meanPalmPosition(), meshFileLoader());
+  PipelineParams params;
+  explicit BunnyCase(int threads) {
+    params.step.dt = 1.0 / rec.meanFrameRate();
+    params.threads = threads;
+  }
+};
+
+HandModel modelFile(const char* name) { return loadHandModel(std::string(GODHAND_MODELS_DIR) + "/" + name); }
+
+// Every hand's poses and figures of the last step into the run's hash (with the frame's TOC where
+// `with_toc`).
+void addStep(const Pipeline& pipe, bool with_toc, RunResult* res) {
+  for (int hand = 0; hand < 2; ++hand) {
+    for (const Pose& P : pipe.poses(hand)) res->hash = mixPose(res->hash, P);
+    const HandResult& r = pipe.result(hand);
+    res->hash = mix(res->hash, r.force_N);
+    if (with_toc) res->hash = mix(res->hash, r.diag.toc);
+    res->hash = mix(res->hash, static_cast<double>(r.diag.contacts));
+    res->loads += r.diag.contacts;
+  }
+}
+
+// Both hands, the first 120 frames.
 RunResult runTwoHands(int threads, int body_threads = 1) {
-  const leap::Recording rec = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/confidence2-49fps.json");
-  const HandModel right = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
-  const HandModel left = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_left.pbtxt");
-  const Scene scene = meshScene({parseMeshSpec(std::string(GODHAND_DEPLOY_DIR) + "/meshes/stanford-bunny.obj:0.25")},
-                                rec.meanPalmPosition(), meshFileLoader());
-  PipelineParams p;
-  p.step.dt = 1.0 / rec.meanFrameRate();
-  p.threads = threads;
-  p.body_threads = body_threads;
-  Pipeline pipe(scene, {&right, &left}, p);
+  BunnyCase c(threads);
+  const HandModel right = modelFile("hand16_right.pbtxt"), left = modelFile("hand16_left.pbtxt");
+  c.params.body_threads = body_threads;
+  Pipeline pipe(c.scene, {&right, &left}, c.params);
   leap::Retargeter rt_right(right), rt_left(left);
   std::vector<Pose> tr, tl;
   std::vector<unsigned char> hr, hl;
   RunResult res;
   res.threads = pipe.params().threads;
-  for (size_t k = 0; k < 120 && k < rec.frames().size(); ++k) {
+  for (size_t k = 0; k < 120 && k < c.rec.frames().size(); ++k) {
     std::vector<HandInput> in(2);
-    for (const leap::TrackedHand& h : rec.frames()[k].hands) {
+    for (const leap::TrackedHand& h : c.rec.frames()[k].hands) {
       if (h.right) {
         rt_right.targets(h, &tr, &hr);
         in[0] = HandInput{true, tr.data(), hr.data()};
@@ -73,12 +94,7 @@ RunResult runTwoHands(int threads, int body_threads = 1) {
       }
     }
     pipe.step(in);
-    for (int hand = 0; hand < 2; ++hand) {
-      for (const Pose& P : pipe.poses(hand)) res.hash = mixPose(res.hash, P);
-      const HandResult& r = pipe.result(hand);
-      res.hash = mix(mix(mix(res.hash, r.force_N), r.diag.toc), static_cast<double>(r.diag.contacts));
-      res.loads += r.diag.contacts;
-    }
+    addStep(pipe, true, &res);
   }
   return res;
 }
@@ -97,23 +113,17 @@ TEST(Threads, TwoHandsGiveTheSameResultOnOneTwoAndThreeThreads) {
 // it keeps its body on its own thread while the hand's bodies go through the job share. Both
 // thread counts run (the pipeline was once built to refuse such a pair) and agree bit for bit.
 RunResult runHandAndTool(int threads) {
-  const leap::Recording rec = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/confidence2-49fps.json");
-  const HandModel right = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
-  const HandModel tool = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/tool1.pbtxt");
-  const Scene scene = meshScene({parseMeshSpec(std::string(GODHAND_DEPLOY_DIR) + "/meshes/stanford-bunny.obj:0.25")},
-                                rec.meanPalmPosition(), meshFileLoader());
-  PipelineParams p;
-  p.step.dt = 1.0 / rec.meanFrameRate();
-  p.threads = threads;
-  Pipeline pipe(scene, {&right, &tool}, p);
+  BunnyCase c(threads);
+  const HandModel right = modelFile("hand16_right.pbtxt"), tool = modelFile("tool1.pbtxt");
+  Pipeline pipe(c.scene, {&right, &tool}, c.params);
   leap::Retargeter rt_right(right);
   std::vector<Pose> tr, tt(1);
   std::vector<unsigned char> hr, ht(1, 1);
   RunResult res;
   res.threads = pipe.params().threads;
-  for (size_t k = 0; k < 60 && k < rec.frames().size(); ++k) {
+  for (size_t k = 0; k < 60 && k < c.rec.frames().size(); ++k) {
     std::vector<HandInput> in(2);
-    for (const leap::TrackedHand& h : rec.frames()[k].hands) {
+    for (const leap::TrackedHand& h : c.rec.frames()[k].hands) {
       if (!h.right) continue;
       rt_right.targets(h, &tr, &hr);
       in[0] = HandInput{true, tr.data(), hr.data()};
@@ -123,12 +133,7 @@ RunResult runHandAndTool(int threads) {
       in[1] = HandInput{true, tt.data(), ht.data()};
     }
     pipe.step(in);
-    for (int hand = 0; hand < 2; ++hand) {
-      for (const Pose& P : pipe.poses(hand)) res.hash = mixPose(res.hash, P);
-      const HandResult& r = pipe.result(hand);
-      res.hash = mix(mix(res.hash, r.force_N), static_cast<double>(r.diag.contacts));
-      res.loads += r.diag.contacts;
-    }
+    addStep(pipe, false, &res);
   }
   return res;
 }
