@@ -185,7 +185,7 @@ std::string writePartitionProfiles(const std::string& profiles, const std::strin
   const size_t end = xml.rfind("</profiles>");
   if (end == std::string::npos) throw std::runtime_error(profiles + ": no </profiles>");
   const std::string part = "<qos><partition><names><name>" + partition + "</name></names></partition></qos>";
-  xml.insert(end, "  <!-- added by godhand-launch --partition -->\n  <data_writer profile_name=\"godhand.partition\" is_default_profile=\"true\">" +
+  xml.insert(end, "  <!-- added by godhand-launch (partition option) -->\n  <data_writer profile_name=\"godhand.partition\" is_default_profile=\"true\">" +
                       part + "</data_writer>\n  <data_reader profile_name=\"godhand.partition\" is_default_profile=\"true\">" + part +
                       "</data_reader>\n");
   const std::string out_path = dir + "/profiles-" + partition + ".xml";

@@ -486,6 +486,23 @@ def case_profiles_qos():
             check(w["deadline"] is not None and 0 < w["deadline"] <= 2.0, f"{n}: writer deadline {w['deadline']} s")
         check(r["deadline"] is None or (w["deadline"] is not None and r["deadline"] >= w["deadline"]),
               f"{n}: reader deadline {r['deadline']} compatible with the writer's {w['deadline']}")
+    # Every shipped file is well-formed XML (tinyxml2, Fast DDS's parser, accepts a double hyphen
+    # in a comment; strict parsers, e.g. a lab's configuration tools, do not).
+    for f in sorted(os.listdir(os.path.join(DEPLOY, "dds"))):
+        if f.endswith(".xml"):
+            try:
+                ET.parse(os.path.join(DEPLOY, "dds", f))
+                check(True, f"{f}: well-formed XML")
+            except ET.ParseError as e:
+                check(False, f"{f}: well-formed XML ({e})")
+    # Reliable writers heartbeat within 0.1 s in every shipped file: a lost DATA waits for the next
+    # heartbeat (Fast DDS's default 3 s stalled lock-step 3-6 s per loss, services/dds/README.md).
+    for f in ("godhand-local.xml", "godhand-multihost.xml", "godhand-multihost-ds.xml"):
+        for e in ET.parse(os.path.join(DEPLOY, "dds", f)).getroot().findall("f:data_writer", ns):
+            if e.findtext("f:qos/f:reliability/f:kind", None, ns) != "RELIABLE":
+                continue
+            hb = seconds(e.find("f:times/f:heartbeatPeriod", ns))
+            check(hb is not None and 0 < hb <= 0.1, f"{f} {e.get('profile_name')}: heartbeat period {hb} s (<= 0.1 s)")
 
 
 def case_kill(service, recording):

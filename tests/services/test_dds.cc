@@ -1021,12 +1021,12 @@ TEST(DdsLossRepair, LockStepFramesUnderDataLossArriveWholeAndInOrder) {
   std::vector<double> waits_ms;
   double total_s = 0.0;
   {
-    dds::Options o = options(220, "test/lossy-ingest");
+    dds::Options o = options(223, "test/lossy-ingest");
     o.drop_data_percent = 20;
     dds::Participant a(o);
     dds::Writer<msg::HandTarget> w(a, dds::topic::kHandTarget, dds::profile::kLockStep);
     dds::Reader<msg::HandState> r(a, dds::topic::kHandState, dds::profile::kLockStep);
-    child = spawnChild("lossy-echo", 220, {"GODHAND_DDS_DROP_DATA_PERCENT=20"});
+    child = spawnChild("lossy-echo", 223, {"GODHAND_DDS_DROP_DATA_PERCENT=20"});
     ASSERT_GT(child, 0);
     guard.add(child);
     ASSERT_TRUE(waitFor([&] { return w.matched() == 1 && r.matched() == 1; }, kMatchDeadline));
