@@ -113,6 +113,23 @@ def render_lab(tmp, bin_dir, deploy, server=True, extra=None, security=""):
     return labs, profiles, server_xml
 
 
+def dump_stacks(pattern):
+    """Every thread's backtrace of the processes whose command line matches `pattern`, where gdb
+    is installed: what a process that missed its deadline was waiting for (printed, best effort)."""
+    if not shutil.which("gdb"):
+        print(f"(no gdb: no backtrace of {pattern!r})")
+        return
+    pids = subprocess.run(["pgrep", "-f", pattern], capture_output=True, text=True).stdout.split()
+    for pid in pids:
+        try:
+            r = subprocess.run(["gdb", "-p", pid, "-batch", "-nx", "-ex", "thread apply all bt 25"],
+                               capture_output=True, text=True, timeout=60)
+            lines = [l for l in r.stdout.splitlines() if l.startswith(("#", "Thread"))]
+            print(f"--- backtrace of {pattern!r} pid {pid}:\n" + "\n".join(lines[:400]))
+        except subprocess.TimeoutExpired:
+            print(f"(gdb on pid {pid} timed out)")
+
+
 def stop(p, sig):
     """Signals the process group of `p` (started with its own session), if it still runs."""
     try:
@@ -244,6 +261,8 @@ def lab_run(lab, tmp, bin_dir, lab_files, domain, server_xml, mode_args, tag, ti
                         stop(p, signal.SIGTERM)
                 injectors_stopped = True
     if ingest.poll() is None:
+        print(f"[{tag}] the ingest host's launch is still running at its deadline ({timeout} s): its stacks")
+        dump_stacks(f"godhand-launch .*--host ingest .*--log-dir {os.path.join(logs, 'ingest')}")
         stop(ingest, signal.SIGKILL)
     rc = ingest.wait()
     if running:  # the other hosts still publish (held states): let late handshakes complete
