@@ -586,6 +586,12 @@ int main(int argc, char** argv) {
 
   Clock::time_point t_first_state{}, t_last_state{};
   bool ingest_done = false;  // the ingest exited 0: every HandTarget it wrote is out
+  // When this launcher's ingest first said "stopping" (its last heartbeat, with its final
+  // counters) while its process still ran: it has kExitGrace to exit. (Seen once: an ingest that
+  // had finished a secured multi-host lock-step run never exited, and the launcher waited for it
+  // until the test killed everything 3 minutes later.)
+  Clock::time_point ingest_stopping_since{};
+  constexpr double kExitGrace = 10.0;
   bool run_over = false;  // the ingest is done: held hands re-published after the run are not counted
   std::vector<long> live_contacts(C, 0);
   std::vector<Pose> gap_poses;
@@ -911,6 +917,19 @@ int main(int argc, char** argv) {
       }
     }
     if (!failure.empty()) break;
+    if (!ingest_done) {
+      const ChildStatus* ic = sup.find("ingest");
+      const auto ist = status.find("ingest");
+      if (ic && ic->running && ist != status.end() && ist->second.state() == "stopping") {
+        if (ingest_stopping_since == Clock::time_point{}) ingest_stopping_since = Clock::now();
+        if (secondsSince(ingest_stopping_since) > kExitGrace) {
+          sup.signal("ingest", SIGKILL);
+          failure = "ingest finished its run but had not exited " + fmt17(kExitGrace) +
+                    " s later (killed: stuck in its shutdown, after its last heartbeat)";
+          break;
+        }
+      }
+    }
     // The watchdog: a service without a heartbeat for silent_after is dead, whatever the reason.
     for (const std::string& name : watchdog.update(Clock::now())) {
       std::printf("launch: watchdog: %s silent (no heartbeat for %.1f s)%s\n", name.c_str(), watchdog.silentFor(name, Clock::now()),

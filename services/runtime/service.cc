@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <thread>
 
 #include "common/signals.h"
@@ -172,6 +173,12 @@ int Service::finish(int code, const std::string& why) {
   // The last heartbeat carries the final counters (the launch report's): not lost with the writer
   // when the process exits right after (a short lock-step run had sent only "starting" before).
   if (status_) status_->waitForAcknowledgments(std::chrono::milliseconds(1000));
+  // Fault injection for the launcher's tests: a service that never exits after its last
+  // heartbeat (GODHAND_FAULT_HANG_AFTER_FINISH names the service). Only SIGKILL ends it.
+  if (const char* hang = std::getenv("GODHAND_FAULT_HANG_AFTER_FINISH"); hang != nullptr && name_ == hang) {
+    std::fprintf(stderr, "%s: GODHAND_FAULT_HANG_AFTER_FINISH: hanging (fault injection)\n", name_.c_str());
+    for (;;) std::this_thread::sleep_for(std::chrono::seconds(1));
+  }
   return code;
 }
 

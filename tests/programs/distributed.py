@@ -8,7 +8,7 @@ that nothing is left behind: no process of its domain, no new shared-memory segm
 usage: distributed.py CASE BIN_DIR DEPLOY_DIR DOMAIN [args]
 cases: same-hash RECORDING | same-hash-after-loss RECORDING | same-hash-under-packet-loss RECORDING | live RECORDING | kill SERVICE RECORDING | rejects | loopback RECORDING |
        drills RECORDING | freeze SERVICE RECORDING | freeze-restart SERVICE RECORDING | startup-remote |
-       lockstep-fail RECORDING | two-labs RECORDING | profiles-qos | hand-kill SERVICE RECORDING
+       lockstep-fail RECORDING | ingest-hangs-at-exit RECORDING | two-labs RECORDING | profiles-qos | hand-kill SERVICE RECORDING
 """
 import re
 import signal
@@ -412,6 +412,21 @@ def case_lockstep_fail(recording):
     check(j.get("check", {}).get("ok") is False, f"--check failed ({j.get('check')})")
 
 
+def case_ingest_hangs_at_exit(recording):
+    """An ingest that finishes its run (its last heartbeat says "stopping") but never exits
+    (GODHAND_FAULT_HANG_AFTER_FINISH=ingest): the launcher kills it 10 s later and fails the run,
+    naming it, instead of waiting for it for good (seen once in a secured multi-host run)."""
+    t0 = time.monotonic()
+    r, j = launch(["--lockstep", "--recording", recording, "--check"], timeout=120,
+                  env=dict(os.environ, GODHAND_FAULT_HANG_AFTER_FINISH="ingest"))
+    took = time.monotonic() - t0
+    print(f"[figure] the launcher gave up on the hung ingest after {took:.1f} s", flush=True)
+    check(r.returncode == 1, f"the run fails ({r.returncode})")
+    check("had not exited 10 s later" in j.get("failure", ""), f"the failure names the hang ({j.get('failure', '')[:120]})")
+    check("result_hash" not in j and "result hash" not in r.stdout, "no result hash printed or written")
+    check(took < 60, f"the launcher ended within a minute ({took:.1f} s)")
+
+
 def case_two_labs(recording):
     """Two launches on one DDS domain at the same time. With a partition each, each counts only its
     own states (one ingest run, the recording's frames) and sees no other lab; without, each says
@@ -647,6 +662,8 @@ try:
         case_same_hash(ARGS[0])
     elif CASE == "same-hash-after-loss":
         case_same_hash_after_loss(ARGS[0])
+    elif CASE == "ingest-hangs-at-exit":
+        case_ingest_hangs_at_exit(ARGS[0])
     elif CASE == "same-hash-under-packet-loss":
         case_same_hash_under_packet_loss(ARGS[0])
     elif CASE == "live":

@@ -263,6 +263,7 @@ def lab_run(lab, tmp, bin_dir, lab_files, domain, server_xml, mode_args, tag, ti
     if ingest.poll() is None:
         print(f"[{tag}] the ingest host's launch is still running at its deadline ({timeout} s): its stacks")
         dump_stacks(f"godhand-launch .*--host ingest .*--log-dir {os.path.join(logs, 'ingest')}")
+        dump_stacks(f"godhand-ingest .*--domain {domain} ")  # a child it may be waiting for
         stop(ingest, signal.SIGKILL)
     rc = ingest.wait()
     if running:  # the other hosts still publish (held states): let late handshakes complete
