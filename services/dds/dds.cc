@@ -365,12 +365,12 @@ struct Participant::Core {
   // What the readers' listeners were told (Participant::samplesLost / samplesRejected).
   std::atomic<std::uint64_t> samples_lost{0}, samples_rejected{0};
   mutable std::mutex losses_mutex;  // guards losses (per topic: lost, rejected)
-  std::map<std::string, std::pair<std::uint64_t, std::uint64_t>> losses;
-  void addLosses(const std::string& topic, std::uint64_t lost, std::uint64_t rejected) {
+  std::map<std::pair<std::string, bool>, std::pair<std::uint64_t, std::uint64_t>> losses;  // (topic, newest only)
+  void addLosses(const std::string& topic, bool newest_only, std::uint64_t lost, std::uint64_t rejected) {
     samples_lost.fetch_add(lost, std::memory_order_relaxed);
     samples_rejected.fetch_add(rejected, std::memory_order_relaxed);
     std::lock_guard<std::mutex> lock(losses_mutex);
-    auto& e = losses[topic];
+    auto& e = losses[{topic, newest_only}];
     e.first += lost;
     e.second += rejected;
   }
@@ -656,7 +656,8 @@ std::vector<Participant::TopicLosses> Participant::lossesByTopic() const {
   std::vector<TopicLosses> out;
   std::lock_guard<std::mutex> lock(core_->losses_mutex);
   for (const auto& e : core_->losses)
-    if (e.second.first > 0 || e.second.second > 0) out.push_back(TopicLosses{e.first, e.second.first, e.second.second});
+    if (e.second.first > 0 || e.second.second > 0)
+      out.push_back(TopicLosses{e.first.first, e.second.first, e.second.second, e.first.second});
   return out;
 }
 const std::string& Participant::profilesFile() const { return core_->profiles_file; }
@@ -821,7 +822,8 @@ const std::string& Writer<T>::topic() const {
 namespace {
 class DataListener : public fdds::DataReaderListener {
  public:
-  DataListener(Participant::Core* core, std::string topic) : core_(core), topic_(std::move(topic)) {}
+  DataListener(Participant::Core* core, std::string topic, bool newest_only)
+      : core_(core), topic_(std::move(topic)), newest_only_(newest_only) {}
   void on_data_available(fdds::DataReader*) override { core_->notifyData(); }
   // (The totals are this reader's, cumulative: their growth goes to the participant's sums, in
   // all and per topic. The callbacks may come from more than one receive thread, hence the lock;
@@ -829,19 +831,20 @@ class DataListener : public fdds::DataReaderListener {
   void on_sample_lost(fdds::DataReader*, const fdds::SampleLostStatus& status) override {
     const std::uint64_t total = status.total_count > 0 ? static_cast<std::uint64_t>(status.total_count) : 0;
     std::lock_guard<std::mutex> lock(mutex_);
-    if (total > lost_) core_->addLosses(topic_, total - lost_, 0);
+    if (total > lost_) core_->addLosses(topic_, newest_only_, total - lost_, 0);
     lost_ = std::max(lost_, total);
   }
   void on_sample_rejected(fdds::DataReader*, const eprosima::fastrtps::SampleRejectedStatus& status) override {
     const std::uint64_t total = status.total_count;
     std::lock_guard<std::mutex> lock(mutex_);
-    if (total > rejected_) core_->addLosses(topic_, 0, total - rejected_);
+    if (total > rejected_) core_->addLosses(topic_, newest_only_, 0, total - rejected_);
     rejected_ = std::max(rejected_, total);
   }
 
  private:
   Participant::Core* core_;
   std::string topic_;
+  bool newest_only_;  // Participant::TopicLosses::newest_only
   std::mutex mutex_;
   std::uint64_t lost_ = 0, rejected_ = 0;  // this reader's totals seen so far
 };
@@ -882,17 +885,20 @@ Reader<T>::Reader(Participant& participant, const std::string& topic, const std:
     : impl_(new Impl) {
   impl_->core = participant.core_;
   impl_->topic = topic;
-  impl_->listener.reset(new DataListener(impl_->core.get(), topic));
   Participant::Core& c = *impl_->core;
   std::lock_guard<std::mutex> lock(c.entities);
   fdds::Topic* t = c.template topic<typename WireType<T>::PubSub>(topic);
   c.requireEndpointProfile(false, profile);
   const std::uint64_t mark = errorMark();
+  fdds::DataReaderQos qos;
+  if (c.subscriber->get_datareader_qos_from_profile(profile, qos) != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK)
+    throw DdsError(std::string(kPrefix) + "no data_reader profile " + inQuotes(profile) + " in " + inQuotes(c.profiles_file));
+  if (keep_last > 0 && qos.history().kind == fdds::KEEP_LAST_HISTORY_QOS)
+    qos.history().depth = std::max(qos.history().depth, keep_last);
+  const bool newest_only = qos.reliability().kind == fdds::RELIABLE_RELIABILITY_QOS &&
+                           qos.history().kind == fdds::KEEP_LAST_HISTORY_QOS && qos.history().depth == 1;
+  impl_->listener.reset(new DataListener(impl_->core.get(), topic, newest_only));
   if (keep_last > 0) {
-    fdds::DataReaderQos qos;
-    if (c.subscriber->get_datareader_qos_from_profile(profile, qos) != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK)
-      throw DdsError(std::string(kPrefix) + "no data_reader profile " + inQuotes(profile) + " in " + inQuotes(c.profiles_file));
-    if (qos.history().kind == fdds::KEEP_LAST_HISTORY_QOS) qos.history().depth = std::max(qos.history().depth, keep_last);
     auto& rl = qos.resource_limits();
     if (rl.max_samples_per_instance > 0) rl.max_samples_per_instance = std::max(rl.max_samples_per_instance, keep_last);
     if (rl.max_samples > 0 && rl.max_instances > 0 && rl.max_samples_per_instance > 0)

@@ -100,9 +100,15 @@ class Participant {
   std::uint64_t samplesRejected() const;
   // The same per topic (this participant's readers of it summed), topics with none left out, by
   // topic name: a loss on a lock-step topic is not hidden among the best-effort heartbeats'.
+  // newest_only: the readers were reliable and kept only the newest sample (history keep-last 1,
+  // the live state and status streams). There a sample is reported lost when a newer one had
+  // replaced it in the writer's history before a lost packet could be resent: superseded, as the
+  // stream intends, nothing waits on it (on a lock-step topic a loss is a frame that never came;
+  // on a best-effort one, a packet the network lost). Listed apart from the topic's other readers.
   struct TopicLosses {
     std::string topic;
     std::uint64_t lost = 0, rejected = 0;
+    bool newest_only = false;
   };
   std::vector<TopicLosses> lossesByTopic() const;
 

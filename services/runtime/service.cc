@@ -167,7 +167,8 @@ int Service::finish(int code, const std::string& why) {
                  static_cast<unsigned long long>(participant_->samplesRejected()));
   if (participant_)
     for (const dds::Participant::TopicLosses& t : participant_->lossesByTopic())
-      std::fprintf(stderr, "%s:     of them on %s: lost %llu, rejected %llu\n", name_.c_str(), t.topic.c_str(),
+      std::fprintf(stderr, "%s:     of them on %s%s: lost %llu, rejected %llu\n", name_.c_str(), t.topic.c_str(),
+                   t.newest_only ? " (newest only: superseded by a newer sample before a lost packet was resent)" : "",
                    static_cast<unsigned long long>(t.lost), static_cast<unsigned long long>(t.rejected));
   heartbeat(code == 0 ? "stopping" : "failed", true);
   // The last heartbeat carries the final counters (the launch report's): not lost with the writer
