@@ -14,6 +14,7 @@ pkgs=(
   cyclonedds-dev cyclonedds-tools openssl  # interop test (a Cyclone DDS reader, its idlc); lab PKI (deploy/security)
   python3-matplotlib  # godhand-bench --sweep --plot (Debian's python3, /usr/bin/python3)
   libmujoco-dev  # godhand-bench --compare mujoco (deploy/run.sh compare) and its tests
+  gdb  # where a service hangs: godhand-launch prints its threads' backtraces before it kills it
 )
 missing=()
 for p in "${pkgs[@]}"; do

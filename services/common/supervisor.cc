@@ -344,6 +344,79 @@ bool Supervisor::signal(const std::string& name, int sig) {
 
 namespace {
 
+/// The first executable `program` on $PATH, or "".
+std::string onPath(const char* program) {
+  const char* path = std::getenv("PATH");
+  std::string dirs = path ? path : "/usr/bin:/bin";
+  size_t start = 0;
+  while (start <= dirs.size()) {
+    const size_t end = std::min(dirs.find(':', start), dirs.size());
+    const std::string dir = end > start ? dirs.substr(start, end - start) : ".";
+    const std::string candidate = dir + "/" + program;
+    if (::access(candidate.c_str(), X_OK) == 0) return candidate;
+    start = end + 1;
+  }
+  return "";
+}
+
+}  // namespace
+
+std::string Supervisor::backtraces(const std::string& name, std::chrono::seconds timeout) const {
+  const ChildStatus* st = find(name);
+  if (!st || !st->running) return "(no backtrace of " + name + ": not running)\n";
+  const std::string gdb = onPath("gdb");
+  if (gdb.empty()) return "(no backtrace of " + name + ": gdb is not installed)\n";
+  int fds[2];
+  if (::pipe2(fds, O_CLOEXEC) != 0) return "(no backtrace of " + name + ": pipe: " + std::strerror(errno) + ")\n";
+  const std::string pid = std::to_string(st->pid);
+  const pid_t child = ::fork();
+  if (child < 0) {
+    ::close(fds[0]);
+    ::close(fds[1]);
+    return "(no backtrace of " + name + ": fork: " + std::strerror(errno) + ")\n";
+  }
+  if (child == 0) {  // gdb's output (both streams) into the pipe; nothing else inherited
+    ::dup2(fds[1], STDOUT_FILENO);
+    ::dup2(fds[1], STDERR_FILENO);
+    const int null = ::open("/dev/null", O_RDONLY);
+    if (null >= 0) ::dup2(null, STDIN_FILENO);
+    const char* argv[] = {gdb.c_str(), "-p", pid.c_str(), "-batch", "-nx", "-ex", "thread apply all bt 30", nullptr};
+    ::execv(gdb.c_str(), const_cast<char* const*>(argv));
+    ::_exit(127);
+  }
+  ::close(fds[1]);
+  ::fcntl(fds[0], F_SETFL, ::fcntl(fds[0], F_GETFL) | O_NONBLOCK);
+  constexpr size_t kMaxOutput = 256 * 1024;
+  std::string out;
+  const Clock::time_point deadline = Clock::now() + timeout;
+  bool timed_out = false;
+  for (;;) {
+    char buf[4096];
+    const ssize_t n = ::read(fds[0], buf, sizeof buf);
+    if (n > 0) {
+      if (out.size() < kMaxOutput) out.append(buf, static_cast<size_t>(std::min<ssize_t>(n, static_cast<ssize_t>(kMaxOutput - out.size()))));
+      continue;
+    }
+    if (n == 0) break;  // gdb closed its end: done
+    if (errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR) break;
+    if (Clock::now() > deadline) {
+      timed_out = true;
+      break;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ::close(fds[0]);
+  if (timed_out) ::kill(child, SIGKILL);  // (gdb detaches from the child when it dies)
+  int wstatus = 0;
+  while (::waitpid(child, &wstatus, 0) < 0 && errno == EINTR) {
+  }
+  if (timed_out) out += "(gdb killed after " + std::to_string(timeout.count()) + " s)\n";
+  else if (WIFEXITED(wstatus) && WEXITSTATUS(wstatus) == 127 && out.empty()) out = "(no backtrace of " + name + ": " + gdb + " could not run)\n";
+  return out;
+}
+
+namespace {
+
 /// Polls `done` with growing naps (1 ms .. 20 ms) until it is true or the deadline passed.
 template <class Done>
 bool pollUntil(Done done, std::chrono::milliseconds timeout) {

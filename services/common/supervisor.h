@@ -80,6 +80,12 @@ class Supervisor {
   /// Sends `sig` to a running child; false if unknown, not running, or kill() failed.
   bool signal(const std::string& name, int sig);
 
+  /// Every thread's backtrace of a running child, for a report of where it hung: gdb attached for
+  /// a moment (`gdb -p PID -batch -nx -ex "thread apply all bt 30"`), then detached, the child
+  /// going on as before. gdb's output (at most 256 KB; gdb is killed after `timeout`), or one line
+  /// saying why there is none: unknown or not running, no gdb on PATH, gdb could not run.
+  std::string backtraces(const std::string& name, std::chrono::seconds timeout) const;
+
   /// Runs the same spec again after the child ended (throws std::runtime_error if unknown, still
   /// running, or it cannot run).
   void restart(const std::string& name);

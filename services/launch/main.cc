@@ -923,6 +923,10 @@ int main(int argc, char** argv) {
       if (ic && ic->running && ist != status.end() && ist->second.state() == "stopping") {
         if (ingest_stopping_since == Clock::time_point{}) ingest_stopping_since = Clock::now();
         if (secondsSince(ingest_stopping_since) > kExitGrace) {
+          // Where it hangs, before it is killed (gdb, where installed; a few seconds).
+          std::printf("launch: the ingest's threads, %s s after its last heartbeat:\n%s", fmt17(kExitGrace).c_str(),
+                      sup.backtraces("ingest", std::chrono::seconds(30)).c_str());
+          std::fflush(stdout);
           sup.signal("ingest", SIGKILL);
           failure = "ingest finished its run but had not exited " + fmt17(kExitGrace) +
                     " s later (killed: stuck in its shutdown, after its last heartbeat)";

@@ -425,6 +425,10 @@ def case_ingest_hangs_at_exit(recording):
     check("had not exited 10 s later" in j.get("failure", ""), f"the failure names the hang ({j.get('failure', '')[:120]})")
     check("result_hash" not in j and "result hash" not in r.stdout, "no result hash printed or written")
     check(took < 60, f"the launcher ended within a minute ({took:.1f} s)")
+    # Where it hung, printed before the kill: the fault's endless sleep in Service::finish.
+    check("the ingest's threads" in r.stdout, "the launcher prints the hung ingest's threads")
+    if shutil.which("gdb") and "ptrace:" not in r.stdout:
+        check("Service::finish" in r.stdout, "its backtrace shows the hang in Service::finish (gdb)")
 
 
 def case_two_labs(recording):
