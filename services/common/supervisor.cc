@@ -380,6 +380,7 @@ std::string Supervisor::backtraces(const std::string& name, std::chrono::seconds
     ::dup2(fds[1], STDERR_FILENO);
     const int null = ::open("/dev/null", O_RDONLY);
     if (null >= 0) ::dup2(null, STDIN_FILENO);
+    ::close_range(3, ~0U, CLOSE_RANGE_CLOEXEC);  // the launcher's sockets and files stay its own
     const char* argv[] = {gdb.c_str(), "-p", pid.c_str(), "-batch", "-nx", "-ex", "thread apply all bt 30", nullptr};
     ::execv(gdb.c_str(), const_cast<char* const*>(argv));
     ::_exit(127);
