@@ -415,6 +415,60 @@ void ActiveSetSolver::refinePassive(const QpProblem& p) {
 }
 
 SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const unsigned char* warm_passive) {
+  SolveStats stats = solveOnce(p, sol, warm_passive);
+  if (settings_.proximal_iterations > 0 &&
+      (stats.status == SolveStatus::Stalled || stats.status == SolveStatus::IterationLimit))
+    polish(p, sol, stats);
+  return stats;
+}
+
+void ActiveSetSolver::polish(const QpProblem& p, QpSolution& sol, SolveStats& stats) {
+  const int m = p.numRows(), nb = p.numBodies();
+  if (!prox_) {
+    ActiveSetSettings s = settings_;
+    s.proximal_iterations = 0;
+    s.regularization = settings_.proximal_regularization;
+    s.refinement_steps = 0;  // (refinement aims at the unregularised A_PP: not this problem's)
+    prox_ = std::make_unique<ActiveSetSolver>(s);
+  }
+  prox_lambda_.assign(sol.lambda.begin(), sol.lambda.begin() + m);
+  prox_warm_.assign(static_cast<size_t>(m), 0);
+  double best = stats.kkt_residual;
+  const SolveStatus first = stats.status;
+  for (int it = 0; it < settings_.proximal_iterations; ++it) {
+    // b_k + ρ_k λ_k through c_k (b = c − J z_u): the same rows, masses and z_u, so the
+    // subproblem's z is a motion of the original problem too.
+    prox_problem_ = p;
+    for (int k = 0; k < m; ++k) {
+      Row& row = prox_problem_.row(k);
+      const size_t ki = static_cast<size_t>(k);
+      if (row.type == RowType::Inequality) prox_lambda_[ki] = std::max(0.0, prox_lambda_[ki]);
+      row.c += settings_.proximal_regularization * p.row(k).diag * prox_lambda_[ki];
+      prox_warm_[ki] = row.type == RowType::Inequality && prox_lambda_[ki] > 0.0;
+    }
+    prox_problem_.finalize();
+    const SolveStats inner = prox_->solveOnce(prox_problem_, prox_sol_, prox_warm_.data());
+    stats.iterations += inner.iterations;
+    if (inner.status == SolveStatus::NumericalFailure) break;
+    bool finite = true;
+    for (int b = 0; b < nb; ++b) finite = finite && prox_sol_.z[static_cast<size_t>(b)].allFinite();
+    if (!finite) break;
+    for (int k = 0; k < m; ++k) prox_lambda_[static_cast<size_t>(k)] = prox_sol_.lambda[static_cast<size_t>(k)];
+    SolveStats trial;
+    trial.iterations = stats.iterations;
+    finish(p, prox_sol_, true, false, false, trial);
+    if (trial.status == SolveStatus::NumericalFailure || !(trial.kkt_residual < best)) continue;
+    best = trial.kkt_residual;
+    sol.z = prox_sol_.z;
+    sol.lambda = prox_sol_.lambda;
+    stats = trial;
+    // (Not Converged: the status the first solve ended with.)
+    if (stats.status != SolveStatus::Converged) stats.status = first;
+    if (stats.status == SolveStatus::Converged && best <= 1e-3 * settings_.converged_kkt) break;
+  }
+}
+
+SolveStats ActiveSetSolver::solveOnce(const QpProblem& p, QpSolution& sol, const unsigned char* warm_passive) {
   const int m = p.numRows(), nb = p.numBodies();
   reserve(nb, m);
   sol.resize(nb, m);
@@ -563,9 +617,18 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
     accumulate(p, lambda_p_.data(), dz_);
     for (int b = 0; b < nb; ++b) sol.z[static_cast<size_t>(b)] = p.unconstrained(b) + dz_[static_cast<size_t>(b)];
   }
+  stats.active_set_size = active;
+  finish(p, sol, converged, stalled, equality_missing, stats);
+  return stats;
+}
+
+void ActiveSetSolver::finish(const QpProblem& p, const QpSolution& sol, bool converged, bool stalled,
+                             bool equality_missing, SolveStats& stats) {
+  const int m = p.numRows(), nb = p.numBodies();
   bool finite = true;
   for (int b = 0; b < nb; ++b) finite = finite && sol.z[static_cast<size_t>(b)].allFinite();
-  stats.active_set_size = active;
+  if (stats.active_set_size == 0)
+    for (int k = 0; k < m; ++k) stats.active_set_size += sol.lambda[static_cast<size_t>(k)] != 0.0 ? 1 : 0;
   stats.kkt_residual = kktResidual(p, sol, kkt_scratch_).max();
   // Equalities must hold in plain terms too: the round-off-scaled residual cannot see conflicting
   // equalities, whose regularised multipliers (~1/ε) inflate the very scale it divides by.
@@ -594,7 +657,6 @@ SolveStats ActiveSetSolver::solve(const QpProblem& p, QpSolution& sol, const uns
   else if (converged) stats.status = SolveStatus::Stalled;  // no violated row can enter, KKT not met
   else if (stalled) stats.status = SolveStatus::Stalled;
   else stats.status = SolveStatus::IterationLimit;
-  return stats;
 }
 
 }  // namespace godhand

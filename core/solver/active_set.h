@@ -21,6 +21,7 @@
 // only their fill. No allocation once the buffers have grown to the largest problem seen.
 #pragma once
 
+#include <memory>
 #include <vector>
 
 #include "solver/qp.h"
@@ -34,6 +35,15 @@ struct ActiveSetSettings {
   int refinement_steps = 1;      ///< iterative refinement per solve of A_PP
   double converged_kkt = 1e-6;   ///< a solve is Converged only if its KKT residual is below this
   int max_passive = 0;           ///< passive-set (factor) size cap; 0 = 12 N + 128 for N bodies
+  /// A solve that ends Stalled or at the iteration limit is continued by up to this many proximal
+  /// iterations (the proximal method of multipliers): each solves the dual regularised by
+  /// ρ_k = proximal_regularization · A_kk around the last multipliers,
+  ///   min ½ λᵀ(A + diag ρ)λ − (b + diag(ρ) λ_j)ᵀλ over λ_I ≥ 0,
+  /// whose factor is well conditioned however dependent the rows are, and whose fixed point is a
+  /// solution of the original dual. The result is kept only where its KKT residual on the original
+  /// problem is lower; its status is measured on the original problem. 0: off.
+  int proximal_iterations = 40;
+  double proximal_regularization = 1e-8;
 };
 
 class ActiveSetSolver {
@@ -55,6 +65,15 @@ class ActiveSetSolver {
   double factorResidual(const QpProblem& problem, int* passive_size = nullptr) const;
 
  private:
+  /// One active-set solve (what solve() did before the proximal iterations).
+  SolveStats solveOnce(const QpProblem& p, QpSolution& sol, const unsigned char* warm_passive);
+  /// The proximal iterations (ActiveSetSettings::proximal_iterations) after a solve that did not
+  /// converge: replaces sol and stats where they end with a lower KKT residual.
+  void polish(const QpProblem& p, QpSolution& sol, SolveStats& stats);
+  /// stats' KKT residual and status for `sol` (converged: no violated row was left outside P;
+  /// stalled: violated rows could not enter; equality_missing: an equality could not be factored).
+  void finish(const QpProblem& p, const QpSolution& sol, bool converged, bool stalled, bool equality_missing,
+              SolveStats& stats);
   bool append(const QpProblem& p, int k);   // Cholesky append; false if numerically impossible
   void remove(int position);                // delete P[position] from the factor
   void indexEqualities(const QpProblem& p); // eq_of_body_: the equality rows touching each body
@@ -100,6 +119,12 @@ class ActiveSetSolver {
   std::vector<Vec6> dz_;
   std::vector<Vec6> absz_;                 // round-off scale of z (accumulateAbs)
   std::vector<Vec6> kkt_scratch_;
+  // polish(): the regularised solver (no polish of its own), its shifted problem and scratch.
+  std::unique_ptr<ActiveSetSolver> prox_;
+  QpProblem prox_problem_;
+  QpSolution prox_sol_;
+  std::vector<double> prox_lambda_;
+  std::vector<unsigned char> prox_warm_;
 };
 
 }  // namespace godhand
