@@ -55,6 +55,7 @@ struct RunMetrics::Hand {
   std::unique_ptr<HandSolver> twin;
   std::uint64_t frame = 0;
   std::vector<double> free_err, model_err, lag, gap;
+  std::vector<double> lag_outside;  // the lag of the frames whose twin is outside every object
   /// (frame, God poses, twin poses) of the frames of the last kWindow that had both: a frame
   /// without them (a tracking dropout) does not end a window, its two ends are what is compared
   /// (as anyone comparing the --poses files of the run and its twin would).
@@ -165,6 +166,12 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
     const double e = maxBodyDistance(X, *twin) - depth;
     hand.lag.push_back(e);
     if (e > MetricThresholds::kLagAbove) ++sum.lag_above_5mm;
+    if (depth > MetricThresholds::kTwinInside) {
+      ++sum.twin_inside_frames;
+    } else {
+      hand.lag_outside.push_back(e);
+      if (e > MetricThresholds::kLagAbove) ++sum.lag_above_5mm_twin_outside;
+    }
   }
   if (twin) {
     const long long now = static_cast<long long>(hand.frame);
@@ -188,7 +195,7 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
 
 RunSummary RunMetrics::summary() const {
   RunSummary out;
-  std::vector<double> free_all, model_all, lag_all, gap_all;
+  std::vector<double> free_all, model_all, lag_all, gap_all, lag_outside_all;
   HandSummary& all = out.all;
   all.name = "all";
   for (const auto& hp : hands_) {
@@ -197,11 +204,13 @@ RunSummary RunMetrics::summary() const {
     s.free_tracking_error_m = spreadOf(hand.free_err);
     s.model_error_m = spreadOf(hand.model_err);
     s.excess_lag_m = spreadOf(hand.lag);
+    s.excess_lag_twin_outside_m = spreadOf(hand.lag_outside);
     s.contact_gap_m = spreadOf(hand.gap);
     out.hands.push_back(s);
     free_all.insert(free_all.end(), hand.free_err.begin(), hand.free_err.end());
     model_all.insert(model_all.end(), hand.model_err.begin(), hand.model_err.end());
     lag_all.insert(lag_all.end(), hand.lag.begin(), hand.lag.end());
+    lag_outside_all.insert(lag_outside_all.end(), hand.lag_outside.begin(), hand.lag_outside.end());
     gap_all.insert(gap_all.end(), hand.gap.begin(), hand.gap.end());
     all.frames += s.frames;
     all.tracked += s.tracked;
@@ -211,6 +220,8 @@ RunSummary RunMetrics::summary() const {
     all.penetration_max_m = std::max(all.penetration_max_m, s.penetration_max_m);
     all.joint_gap_max_m = std::max(all.joint_gap_max_m, s.joint_gap_max_m);
     all.lag_above_5mm += s.lag_above_5mm;
+    all.lag_above_5mm_twin_outside += s.lag_above_5mm_twin_outside;
+    all.twin_inside_frames += s.twin_inside_frames;
     all.moving_windows += s.moving_windows;
     all.frozen_windows += s.frozen_windows;
     all.stuck_frames += s.stuck_frames;
@@ -234,6 +245,7 @@ RunSummary RunMetrics::summary() const {
   all.free_tracking_error_m = spreadOf(free_all);
   all.model_error_m = spreadOf(model_all);
   all.excess_lag_m = spreadOf(lag_all);
+  all.excess_lag_twin_outside_m = spreadOf(lag_outside_all);
   all.contact_gap_m = spreadOf(gap_all);
   return out;
 }

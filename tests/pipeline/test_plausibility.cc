@@ -756,6 +756,44 @@ TEST(Plausibility, ExcessLagOfARestingSphereIsTheMargin) {
   EXPECT_TRUE(sum.failure.empty());
 }
 
+// The excess lag split by where the twin is (run_metrics.h): a sphere above a slab, then its
+// target sinks into it. Oracle: the target's analytic depth below the slab's top (the sphere's
+// centre z < 0 puts its surface r − z deep, far more than kTwinInside here); above it the free
+// sphere reaches its target exactly, so the frames with the twin outside have no lag at all.
+TEST(Plausibility, ExcessLagIsSplitByTheTwinInsideOrOutside) {
+  Scene scene = sceneOf({meshObject("slab", boxMesh(Vec3(0.5, 0.5, 0.05)), at(0, 0, -0.05))});
+  const HandModel m = bodyModel("sphere { radius: 0.01 }");
+  const PipelineParams p = params(1.0 / 100);
+  Pipeline pipe(scene, {&m}, p);
+  RunMetrics metrics(scene, {&m}, {"probe"}, p);
+  int above = 0, inside = 0;
+  for (int k = 0; k < 40; ++k) {
+    const double z = k < 10 ? 0.03 : -0.005 - 0.04 * (k - 10) / 29.0;
+    const Pose target = at(0.001 * k, 0, z);
+    (z - 0.01 > 0.0 ? above : inside) += 1;
+    const HandInput in{true, &target, nullptr};
+    pipe.step({in});
+    HandSample s;
+    s.started = s.tracked = true;
+    s.X = pipe.poses(0).data();
+    s.targets = &target;
+    s.loaded = pipe.result(0).loaded;
+    metrics.add(0, s, in, pipe.resolver().collision());
+  }
+  const HandSummary h = metrics.summary().hands.at(0);
+  std::printf("[figure] slab: excess lag median %.3g max %.3g m; twin inside %llu frames; outside: %zu frames, max %.3g m\n",
+              h.excess_lag_m.median, h.excess_lag_m.max, static_cast<unsigned long long>(h.twin_inside_frames),
+              h.excess_lag_twin_outside_m.count, h.excess_lag_twin_outside_m.max);
+  EXPECT_EQ(h.twin_inside_frames, static_cast<std::uint64_t>(inside));
+  EXPECT_EQ(h.excess_lag_twin_outside_m.count, static_cast<size_t>(above));
+  EXPECT_EQ(h.excess_lag_m.count, static_cast<size_t>(above + inside));
+  EXPECT_LT(h.excess_lag_twin_outside_m.max, 1e-9);
+  EXPECT_EQ(h.lag_above_5mm_twin_outside, 0u);
+  EXPECT_EQ(h.penetration_max_m, 0.0);
+  // Pressed straight down, the depth subtraction is exact: the resting sphere's margin.
+  EXPECT_NEAR(h.excess_lag_m.max, p.step.rows.margin, 2e-5);
+}
+
 // A scene that encloses the tracking volume: the hand never starts, and the run says so. The
 // nearest way out of the solid box is 0.5 m (its top, straight up: 0.51 m with the clearance);
 // with max_start_shift 0.1 m nowhere is close enough, and with 1 m the hand starts outside.
