@@ -435,15 +435,15 @@ void ActiveSetSolver::polish(const QpProblem& p, QpSolution& sol, SolveStats& st
   prox_warm_.assign(static_cast<size_t>(m), 0);
   double best = stats.kkt_residual;
   const SolveStatus first = stats.status;
+  // b_k + ρ_k λ_k through c_k (b = c − J z_u): the same rows, masses and z_u, so the
+  // subproblem's z is a motion of the original problem too.
+  prox_problem_ = p;
   for (int it = 0; it < settings_.proximal_iterations; ++it) {
-    // b_k + ρ_k λ_k through c_k (b = c − J z_u): the same rows, masses and z_u, so the
-    // subproblem's z is a motion of the original problem too.
-    prox_problem_ = p;
     for (int k = 0; k < m; ++k) {
       Row& row = prox_problem_.row(k);
       const size_t ki = static_cast<size_t>(k);
       if (row.type == RowType::Inequality) prox_lambda_[ki] = std::max(0.0, prox_lambda_[ki]);
-      row.c += settings_.proximal_regularization * p.row(k).diag * prox_lambda_[ki];
+      row.c = p.row(k).c + settings_.proximal_regularization * p.row(k).diag * prox_lambda_[ki];
       prox_warm_[ki] = row.type == RowType::Inequality && prox_lambda_[ki] > 0.0;
     }
     prox_problem_.finalize();
