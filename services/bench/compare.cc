@@ -91,6 +91,19 @@ std::string Comparison::table(const RunSummary& g, const std::vector<double>& g_
   t += line("excess lag max", g.all.excess_lag_m.max, m.all.excess_lag_m.max, "mm", 1e3);
   t += countLine("frames with excess lag > 5 mm", g.all.lag_above_5mm, g.all.excess_lag_m.count, m.all.lag_above_5mm,
                  m.all.excess_lag_m.count);
+  // Where the twin is inside an object the excess lag is an upper bound (run_metrics.h); the same
+  // twin for both, so the same frames.
+  if (g.all.excess_lag_twin_outside_m.count > 0 || m.all.excess_lag_twin_outside_m.count > 0) {
+    t += line("excess lag p95, twin outside every object", g.all.excess_lag_twin_outside_m.p95,
+              m.all.excess_lag_twin_outside_m.p95, "mm", 1e3);
+    t += countLine("  those frames with excess lag > 5 mm", g.all.lag_above_5mm_twin_outside,
+                   g.all.excess_lag_twin_outside_m.count, m.all.lag_above_5mm_twin_outside,
+                   m.all.excess_lag_twin_outside_m.count);
+  } else {
+    char buf[200];
+    std::snprintf(buf, sizeof buf, "    %-44s %12s %12s\n", "excess lag, twin outside every object", "no frame", "no frame");
+    t += buf;
+  }
   t += countLine("frozen windows", g.all.frozen_windows, g.all.moving_windows, m.all.frozen_windows, m.all.moving_windows);
   {
     // Over the frames in which no contact of the hand is active: each engine has its own count.
@@ -132,6 +145,8 @@ nlohmann::json Comparison::json(const std::vector<double>& g_us) const {
   j["joint_gap_max_m"] = m.all.joint_gap_max_m;
   j["excess_lag_m"] = toJson(m.all.excess_lag_m);
   j["excess_lag_above_5mm"] = m.all.lag_above_5mm;
+  j["excess_lag_twin_outside_m"] = toJson(m.all.excess_lag_twin_outside_m);
+  j["excess_lag_twin_outside_above_5mm"] = m.all.lag_above_5mm_twin_outside;
   j["frozen_windows"] = m.all.frozen_windows;
   j["moving_windows"] = m.all.moving_windows;
   j["free_tracking_error_m"] = toJson(m.all.free_tracking_error_m);
