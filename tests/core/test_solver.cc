@@ -1247,6 +1247,20 @@ TEST(SolverWeakness, NearParallelEqualityRows) {
   }
 }
 
+// The draw of SolverWeakness.MixedDegenerateProblems and Solver.ProximalIterations…: redundant,
+// duplicated and near-parallel rows (1e-8 … 1e-4) with many inequalities.
+GenOptions mixedDegenerateOptions(Rng& rng) {
+  GenOptions o;
+  o.N = rng.integer(1, 8);
+  o.num_eq = rng.integer(0, 4 * o.N);
+  o.num_ineq = rng.integer(0, 20 * o.N);
+  o.num_redundant = rng.integer(0, 2 * o.N);
+  o.num_duplicates = rng.integer(0, 2 * o.N);
+  o.num_near_parallel = rng.integer(0, 2 * o.N);
+  o.near_eps = rng.logUniform(-8.0, -4.0);
+  return o;
+}
+
 // The proximal iterations (ActiveSetSettings::proximal_iterations) on the degenerate problems
 // of SolverWeakness.MixedDegenerateProblems, drawn afresh (another seed, 2000 problems): the same
 // solver without them is the control. Measured before this test was written, 2 × 5000 problems
@@ -1264,15 +1278,7 @@ TEST(Solver, ProximalIterationsFinishDegenerateProblems) {
   int open_with = 0, open_without = 0;
   constexpr int kProblems = 2000;
   for (int i = 0; i < kProblems; ++i) {
-    GenOptions o;
-    o.N = rng.integer(1, 8);
-    o.num_eq = rng.integer(0, 4 * o.N);
-    o.num_ineq = rng.integer(0, 20 * o.N);
-    o.num_redundant = rng.integer(0, 2 * o.N);
-    o.num_duplicates = rng.integer(0, 2 * o.N);
-    o.num_near_parallel = rng.integer(0, 2 * o.N);
-    o.near_eps = rng.logUniform(-8.0, -4.0);
-    const TProblem P = generate(rng, o);
+    const TProblem P = generate(rng, mixedDegenerateOptions(rng));
     P.load(qp);
     const SolveStats st_off = without.solve(qp, sol_off);
     const SolveStats st = with.solve(qp, sol);
@@ -1325,15 +1331,7 @@ TEST(SolverWeakness, MixedDegenerateProblems) {
   int stalled = 0, other = 0, over_roundoff = 0;
   double worst_stalled = 0.0;
   for (int i = 0; i < 500; ++i) {
-    GenOptions o;
-    o.N = rng.integer(1, 8);
-    o.num_eq = rng.integer(0, 4 * o.N);
-    o.num_ineq = rng.integer(0, 20 * o.N);
-    o.num_redundant = rng.integer(0, 2 * o.N);
-    o.num_duplicates = rng.integer(0, 2 * o.N);
-    o.num_near_parallel = rng.integer(0, 2 * o.N);
-    o.near_eps = rng.logUniform(-8.0, -4.0);
-    const TProblem P = generate(rng, o);
+    const TProblem P = generate(rng, mixedDegenerateOptions(rng));
     P.load(qp);
     const SolveStats st = solver.solve(qp, sol);
     const Kkt k = oracleKkt(P, sol);

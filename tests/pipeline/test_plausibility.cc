@@ -725,15 +725,15 @@ TEST(Plausibility, AHandStartingInsideAMeshStartsAtTheNearerOfTheWayOutAndAbove)
 
 // The excess lag of METHOD.md §5 on an analytic case: a sphere whose target sinks d into a plane
 // rests on the plane, so E = |god − twin| − depth(twin) = (d + δ) − d ≈ δ (the contact margin).
-TEST(Plausibility, ExcessLagOfARestingSphereIsTheMargin) {
+// A sphere of radius 1 cm driven to `targets` (one a frame, 100 Hz) above a plate 10 cm thick whose
+// top is z = 0; the run's metrics.
+RunSummary sphereOverAPlate(const std::vector<Pose>& targets, double* margin) {
   Scene scene = sceneOf({meshObject("plate", boxMesh(Vec3(0.5, 0.5, 0.05)), at(0, 0, -0.05))});
   const HandModel m = bodyModel("sphere { radius: 0.01 }");
   const PipelineParams p = params(1.0 / 100);
   Pipeline pipe(scene, {&m}, p);
   RunMetrics metrics(scene, {&m}, {"probe"}, p);
-  const double d = 0.004;
-  for (int k = 0; k < 40; ++k) {
-    const Pose target = k < 5 ? at(0.001 * k, 0, 0.03) : at(0.001 * k, 0, 0.01 - d);
+  for (const Pose& target : targets) {
     const HandInput in{true, &target, nullptr};
     pipe.step({in});
     HandSample s;
@@ -744,8 +744,16 @@ TEST(Plausibility, ExcessLagOfARestingSphereIsTheMargin) {
     s.loaded = pipe.result(0).loaded;
     metrics.add(0, s, in, pipe.resolver().collision());
   }
-  const RunSummary sum = metrics.summary();
-  const double margin = p.step.rows.margin;
+  *margin = p.step.rows.margin;
+  return metrics.summary();
+}
+
+TEST(Plausibility, ExcessLagOfARestingSphereIsTheMargin) {
+  const double d = 0.004;
+  std::vector<Pose> targets;
+  for (int k = 0; k < 40; ++k) targets.push_back(k < 5 ? at(0.001 * k, 0, 0.03) : at(0.001 * k, 0, 0.01 - d));
+  double margin = 0.0;
+  const RunSummary sum = sphereOverAPlate(targets, &margin);
   std::printf("[figure] resting sphere: excess lag median %.3g m (margin %.3g m), model error max %.3g m\n",
               sum.all.excess_lag_m.median, margin, sum.all.model_error_m.max);
   EXPECT_NEAR(sum.all.excess_lag_m.median, margin, 2e-5);
@@ -756,32 +764,21 @@ TEST(Plausibility, ExcessLagOfARestingSphereIsTheMargin) {
   EXPECT_TRUE(sum.failure.empty());
 }
 
-// The excess lag split by where the twin is (run_metrics.h): a sphere above a slab, then its
+// The excess lag split by where the twin is (run_metrics.h): a sphere above a plate, then its
 // target sinks into it. Oracle: the target's analytic depth below the slab's top (the sphere's
 // centre z < 0 puts its surface r − z deep, far more than kTwinInside here); above it the free
 // sphere reaches its target exactly, so the frames with the twin outside have no lag at all.
 TEST(Plausibility, ExcessLagIsSplitByTheTwinInsideOrOutside) {
-  Scene scene = sceneOf({meshObject("slab", boxMesh(Vec3(0.5, 0.5, 0.05)), at(0, 0, -0.05))});
-  const HandModel m = bodyModel("sphere { radius: 0.01 }");
-  const PipelineParams p = params(1.0 / 100);
-  Pipeline pipe(scene, {&m}, p);
-  RunMetrics metrics(scene, {&m}, {"probe"}, p);
   int above = 0, inside = 0;
+  std::vector<Pose> targets;
   for (int k = 0; k < 40; ++k) {
     const double z = k < 10 ? 0.03 : -0.005 - 0.04 * (k - 10) / 29.0;
-    const Pose target = at(0.001 * k, 0, z);
+    targets.push_back(at(0.001 * k, 0, z));
     (z - 0.01 > 0.0 ? above : inside) += 1;
-    const HandInput in{true, &target, nullptr};
-    pipe.step({in});
-    HandSample s;
-    s.started = s.tracked = true;
-    s.X = pipe.poses(0).data();
-    s.targets = &target;
-    s.loaded = pipe.result(0).loaded;
-    metrics.add(0, s, in, pipe.resolver().collision());
   }
-  const HandSummary h = metrics.summary().hands.at(0);
-  std::printf("[figure] slab: excess lag median %.3g max %.3g m; twin inside %llu frames; outside: %zu frames, max %.3g m\n",
+  double margin = 0.0;
+  const HandSummary h = sphereOverAPlate(targets, &margin).hands.at(0);
+  std::printf("[figure] plate: excess lag median %.3g max %.3g m; twin inside %llu frames; outside: %zu frames, max %.3g m\n",
               h.excess_lag_m.median, h.excess_lag_m.max, static_cast<unsigned long long>(h.twin_inside_frames),
               h.excess_lag_twin_outside_m.count, h.excess_lag_twin_outside_m.max);
   EXPECT_EQ(h.twin_inside_frames, static_cast<std::uint64_t>(inside));
@@ -791,7 +788,7 @@ TEST(Plausibility, ExcessLagIsSplitByTheTwinInsideOrOutside) {
   EXPECT_EQ(h.lag_above_5mm_twin_outside, 0u);
   EXPECT_EQ(h.penetration_max_m, 0.0);
   // Pressed straight down, the depth subtraction is exact: the resting sphere's margin.
-  EXPECT_NEAR(h.excess_lag_m.max, p.step.rows.margin, 2e-5);
+  EXPECT_NEAR(h.excess_lag_m.max, margin, 2e-5);
 }
 
 // A scene that encloses the tracking volume: the hand never starts, and the run says so. The
