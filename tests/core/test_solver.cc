@@ -1286,8 +1286,11 @@ TEST(Solver, ProximalIterationsFinishDegenerateProblems) {
     const Kkt k = oracleKkt(P, sol);
     ASSERT_TRUE(k.finite()) << i;
     ASSERT_NE(st.status, SolveStatus::NumericalFailure) << i;
-    for (int r = 0; r < P.m(); ++r)
-      if (P.rows[static_cast<size_t>(r)].type == RowType::Inequality) ASSERT_GE(sol.lambda[static_cast<size_t>(r)], 0.0) << i;
+    for (int r = 0; r < P.m(); ++r) {
+      if (P.rows[static_cast<size_t>(r)].type == RowType::Inequality) {
+        ASSERT_GE(sol.lambda[static_cast<size_t>(r)], 0.0) << i;
+      }
+    }
     // A solve the first pass finished is not touched.
     if (st_off.status == SolveStatus::Converged) {
       ASSERT_EQ(st.status, SolveStatus::Converged) << i;
