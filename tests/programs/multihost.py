@@ -295,6 +295,13 @@ def lab_run(lab, tmp, bin_dir, lab_files, domain, server_xml, mode_args, tag, ti
             server.wait()
     out = open(os.path.join(logs, "launch-ingest.out")).read()
     print(f"--- [{tag}] ingest host launch (exit {rc}):\n" + out[-2500:])
+    # The backtraces the launcher takes of an ingest stuck at exit (before it kills it) are far
+    # above the tail: printed whole, or the hang they were taken for stays unexplained (CI of
+    # 5659fff: the stuck ingest's stacks were cut off with the rest of the log).
+    marker = out.find("the ingest's threads")
+    if marker >= 0:
+        end = out.find("\nlaunch: ", marker)
+        print(f"--- [{tag}] the launcher's backtraces of the stuck ingest:\n" + out[marker:end if end >= 0 else None][:60000])
     if rc != 0 or any(v != 0 for v in rcs.values()):
         for f in sorted(os.listdir(logs)):
             p = os.path.join(logs, f)
