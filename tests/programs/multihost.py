@@ -429,7 +429,11 @@ def outer(args, script):
         if left:
             print(f"FAILED: processes of domain {domain} left: {left}")
             rc = 1
-        shutil.rmtree(tmp, ignore_errors=True)
+        # GODHAND_KEEP_LOGS=1 (a hunt for a rare failure): the run's directory is left, named.
+        if os.environ.get("GODHAND_KEEP_LOGS") == "1":
+            print(f"logs kept in {tmp}")
+        else:
+            shutil.rmtree(tmp, ignore_errors=True)
     sys.exit(rc)
 
 
