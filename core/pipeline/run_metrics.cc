@@ -166,9 +166,7 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
     const double e = maxBodyDistance(X, *twin) - depth;
     hand.lag.push_back(e);
     if (e > MetricThresholds::kLagAbove) ++sum.lag_above_5mm;
-    if (depth > MetricThresholds::kTwinInside) {
-      ++sum.twin_inside_frames;
-    } else {
+    if (!(depth > MetricThresholds::kTwinInside)) {
       hand.lag_outside.push_back(e);
       if (e > MetricThresholds::kLagAbove) ++sum.lag_above_5mm_twin_outside;
     }
@@ -221,7 +219,6 @@ RunSummary RunMetrics::summary() const {
     all.joint_gap_max_m = std::max(all.joint_gap_max_m, s.joint_gap_max_m);
     all.lag_above_5mm += s.lag_above_5mm;
     all.lag_above_5mm_twin_outside += s.lag_above_5mm_twin_outside;
-    all.twin_inside_frames += s.twin_inside_frames;
     all.moving_windows += s.moving_windows;
     all.frozen_windows += s.frozen_windows;
     all.stuck_frames += s.stuck_frames;

@@ -85,9 +85,11 @@ struct HandSummary {
   Spread model_error_m;                ///< twin to targets: what the model cannot represent
   Spread excess_lag_m;                 ///< see above
   /// The excess lag of the frames whose twin is outside every object, and of those the frames
-  /// above 5 mm; the frames whose twin is inside one (see above).
+  /// above 5 mm (see above).
   Spread excess_lag_twin_outside_m;
-  std::uint64_t lag_above_5mm_twin_outside = 0, twin_inside_frames = 0;
+  std::uint64_t lag_above_5mm_twin_outside = 0;
+  /// The frames whose twin is inside an object: every excess-lag frame that is not outside.
+  std::uint64_t twinInsideFrames() const { return excess_lag_m.count - excess_lag_twin_outside_m.count; }
   Spread contact_gap_m;                ///< see above (body-frames touching the God side)
   std::uint64_t lag_above_5mm = 0;
   std::uint64_t moving_windows = 0, frozen_windows = 0;
@@ -207,7 +209,7 @@ inline std::string describe(const HandSummary& h) {
                 "%llu body-frames, free twin %llu; clipped %llu frames (TOC < 1e-3 in %llu), rounds %llu",
                 h.name.c_str(), h.excess_lag_m.median * 1e3, h.excess_lag_m.p95 * 1e3, h.excess_lag_m.max * 1e3,
                 static_cast<unsigned long long>(h.lag_above_5mm), h.excess_lag_m.count,
-                static_cast<unsigned long long>(h.twin_inside_frames), h.excess_lag_twin_outside_m.count,
+                static_cast<unsigned long long>(h.twinInsideFrames()), h.excess_lag_twin_outside_m.count,
                 h.excess_lag_twin_outside_m.median * 1e3, h.excess_lag_twin_outside_m.p95 * 1e3,
                 h.excess_lag_twin_outside_m.max * 1e3, static_cast<unsigned long long>(h.lag_above_5mm_twin_outside),
                 static_cast<unsigned long long>(h.frozen_windows), static_cast<unsigned long long>(h.moving_windows),

@@ -24,7 +24,7 @@ inline nlohmann::json toJson(const HandSummary& h) {
                         {"excess_lag_above_5mm", h.lag_above_5mm},
                         {"excess_lag_twin_outside_m", toJson(h.excess_lag_twin_outside_m)},
                         {"excess_lag_twin_outside_above_5mm", h.lag_above_5mm_twin_outside},
-                        {"twin_inside_frames", h.twin_inside_frames},
+                        {"twin_inside_frames", h.twinInsideFrames()},
                         {"moving_windows", h.moving_windows},
                         {"frozen_windows", h.frozen_windows},
                         {"stuck_frames", h.stuck_frames},

@@ -779,9 +779,9 @@ TEST(Plausibility, ExcessLagIsSplitByTheTwinInsideOrOutside) {
   double margin = 0.0;
   const HandSummary h = sphereOverAPlate(targets, &margin).hands.at(0);
   std::printf("[figure] plate: excess lag median %.3g max %.3g m; twin inside %llu frames; outside: %zu frames, max %.3g m\n",
-              h.excess_lag_m.median, h.excess_lag_m.max, static_cast<unsigned long long>(h.twin_inside_frames),
+              h.excess_lag_m.median, h.excess_lag_m.max, static_cast<unsigned long long>(h.twinInsideFrames()),
               h.excess_lag_twin_outside_m.count, h.excess_lag_twin_outside_m.max);
-  EXPECT_EQ(h.twin_inside_frames, static_cast<std::uint64_t>(inside));
+  EXPECT_EQ(h.twinInsideFrames(), static_cast<std::uint64_t>(inside));
   EXPECT_EQ(h.excess_lag_twin_outside_m.count, static_cast<size_t>(above));
   EXPECT_EQ(h.excess_lag_m.count, static_cast<size_t>(above + inside));
   EXPECT_LT(h.excess_lag_twin_outside_m.max, 1e-9);
