@@ -731,7 +731,17 @@ struct Writer<T>::Impl : Endpoint {
 
   void release() override {
     std::lock_guard<std::mutex> lock(mutex);
-    if (writer != nullptr && core->publisher != nullptr) core->publisher->delete_datawriter(writer);
+    if (writer != nullptr && core->publisher != nullptr) {
+      // Fast DDS 2.9.1's ~StatefulWriter hands the history's samples back to their pool one at a
+      // time while they are still in the history, and stops the periodic heartbeat only after
+      // that; a heartbeat in between (samples unacknowledged) spins for good on the released
+      // samples' sequence number 0, and the deletion waits for it (tests/services/test_dds.cc,
+      // DdsTeardown). Emptied first, under the writer's mutex, the history is consistent at every
+      // heartbeat. (RETCODE_ERROR when there was nothing to remove: nothing to do then.)
+      std::size_t removed = 0;
+      writer->clear_history(&removed);
+      core->publisher->delete_datawriter(writer);
+    }
     writer = nullptr;
   }
 };

@@ -1,6 +1,6 @@
 // services/dds: the Fast DDS layer, with real participants (no mocks) on loopback only (every
 // participant comes from deploy/dds/godhand-local.xml). Each test uses its own DDS domain in
-// 202..221, which no other test uses (tests/CMakeLists.txt: the table of domains), so that tests
+// 201..223, which no other test uses (tests/CMakeLists.txt: the table of domains), so that tests
 // run in parallel (ctest -j) never see each other; every wait has a deadline.
 #include <dirent.h>
 #include <signal.h>
@@ -242,6 +242,27 @@ struct Children {
   }
 };
 
+// DdsTeardown's writers and readers, one topic each.
+constexpr int kTeardownWriters = 60;
+constexpr int kTeardownSamples = 512;
+std::string teardownTopic(int k) { return "test/teardown/" + std::to_string(k); }
+volatile sig_atomic_t g_continued = 0;  // "stalled-reader": set by SIGCONT
+
+// waitChild, for a child that may hang inside Fast DDS: before it is killed at the deadline, the
+// shared-memory entries it holds are noted, and removed once it is gone (its own segments, not
+// the host's port segments, which other participants share), so that a failing run leaves none.
+int waitChildCleaning(pid_t pid, Clock::duration timeout) {
+  int status = 0;
+  if (waitFor([&] { return waitpid(pid, &status, WNOHANG) == pid; }, timeout))
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  std::set<std::string> own = shmEntriesOf(std::to_string(pid));
+  kill(pid, SIGKILL);
+  waitpid(pid, &status, 0);
+  for (const std::string& n : own)
+    if (n.find("fastrtps_port") == std::string::npos) std::remove(("/dev/shm/" + n).c_str());
+  return -1;
+}
+
 // "state-writer": writes one HandState (handState(1, 77, 16)) on godhand.state, then stays until
 // a reader has matched and gone again. "status-reader": waits for the ServiceStatus of
 // "test/parent". "env-default": with $FASTRTPS_DEFAULT_PROFILES_FILE naming godhand-local.xml
@@ -297,6 +318,55 @@ int runChild(const std::string& role, int domain) {
         by_topic[0].rejected == 0 || by_topic[0].rejected > b.samplesRejected())
       return 15;
     if (!a.lossesByTopic().empty()) return 16;
+    return 0;
+  }
+  if (role == "stalled-reader") {  // DdsTeardown: readers that the other side stops (SIGSTOP)
+    const char* file = std::getenv("GODHAND_DDS_TEST_PROFILES");
+    if (file == nullptr) return 5;
+    dds::Options o = options(domain, "test/stalled-reader");
+    o.profiles = file;
+    signal(SIGCONT, [](int) { g_continued = 1; });
+    dds::Participant p(o);
+    std::vector<std::unique_ptr<dds::Reader<msg::HandTarget>>> readers;
+    for (int k = 0; k < kTeardownWriters; ++k)
+      readers.push_back(std::make_unique<dds::Reader<msg::HandTarget>>(p, teardownTopic(k), dds::profile::kLockStep));
+    // Stopped by the writer's process once its writers have matched these readers; leaves (its
+    // participant deleted) once the test continues it. (Whether it sees the writers leave then
+    // depends on what its buffers kept while it was stopped.)
+    return waitFor([] { return g_continued != 0; }, deadline - Clock::now()) ? 0 : 9;
+  }
+  if (role == "teardown-writer") {  // DdsTeardown: the stalled reader's pid in GODHAND_DDS_TEST_PEER
+    const char* file = std::getenv("GODHAND_DDS_TEST_PROFILES");
+    const char* peer = std::getenv("GODHAND_DDS_TEST_PEER");
+    if (file == nullptr || peer == nullptr) return 5;
+    dds::Options o = options(domain, "test/teardown-writer");
+    o.profiles = file;
+    dds::Participant p(o);
+    std::vector<std::unique_ptr<dds::Writer<msg::HandTarget>>> writers;
+    for (int k = 0; k < kTeardownWriters; ++k)
+      writers.push_back(std::make_unique<dds::Writer<msg::HandTarget>>(p, teardownTopic(k), "test.fast_heartbeat"));
+    if (!waitFor([&] {
+          for (const auto& w : writers)
+            if (w->matched() != 1) return false;
+          return true;
+        }, deadline - Clock::now()))
+      return 3;
+    // The only reader stops acknowledging: every sample stays unacknowledged, and each writer's
+    // periodic heartbeat stays armed (every millisecond) until the writer is deleted.
+    if (kill(static_cast<pid_t>(std::atol(peer)), SIGSTOP) != 0) return 8;
+    msg::HandTarget t;
+    t.targets().assign(16, pose(0.3));
+    for (const auto& w : writers)
+      for (std::uint64_t f = 1; f <= kTeardownSamples; ++f) {
+        t.hand(static_cast<std::uint32_t>(f % 2));
+        t.stamp().frame(f);
+        if (!w->write(t)) return 4;
+      }
+    std::this_thread::sleep_for(20ms);
+    const Clock::time_point t0 = Clock::now();
+    writers.clear();  // (a hang here is what the test is about: killed at its deadline)
+    std::printf("[figure] %d writers with %d unacknowledged samples each and a 1 ms heartbeat deleted in %.1f ms\n",
+                kTeardownWriters, kTeardownSamples, std::chrono::duration<double, std::milli>(Clock::now() - t0).count());
     return 0;
   }
   dds::Participant p(options(domain, "test/child-" + role));
@@ -795,6 +865,61 @@ TEST(DdsLosses, SamplesAReaderCannotHoldAreCountedAsRejected) {
                         "13: a sample reported lost, 14: the writer's participant counted something, "
                         "15: the per-topic count is not the reader's topic's, 16: the writer's has a topic, "
                         "3: not matched, -1: killed at the deadline";
+}
+
+// Deleting a reliable writer whose samples a matched reader has not acknowledged. Fast DDS 2.9.1's
+// ~StatefulWriter returns the history's samples to their pool one at a time (RTPSWriter::deinit,
+// the writer's mutex taken and released for each) while they are still in the history, before
+// it deletes the periodic heartbeat event. A heartbeat that fires in between walks a history
+// whose first samples now have sequence number 0 (CacheChangePool::return_cache_to_pool) in
+// StatefulWriter::add_gaps_for_holes_in_history_, counting up from 1 to a 0 it never reaches: the
+// event thread spins for good and the deletion waits for the writer's mutex forever. Seen as an
+// ingest stuck at exit in secured multi-host runs (security_three_namespaces: 50 ms heartbeats,
+// readers that never acknowledge; 2 of 130 stressed runs, 1 of 3 CI runs), with these stacks.
+// dds::Writer empties the history first (DataWriter::clear_history, under the writer's mutex).
+// Here the race is made likely: 60 writers with 512 unacknowledged samples each and a heartbeat
+// every millisecond, deleted one after the other. Without the emptying the writers' process hung
+// in 3 of 3 runs (and in 2 of 3 with 30 writers of 300 samples). In child processes: the writers'
+// one stops the readers' one (SIGSTOP) once matched, the test continues it.
+TEST(DdsTeardown, WriterWithUnacknowledgedSamplesIsDeletedWhileItsHeartbeatRuns) {
+  std::ifstream in(kLocal);
+  std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  // The shipped lock-step writer's profile, its heartbeat every millisecond instead of 50 ms.
+  const std::size_t from = xml.find("<data_writer profile_name=\"godhand.lockstep\">");
+  ASSERT_NE(from, std::string::npos);
+  const std::size_t to = xml.find("</data_writer>", from);
+  ASSERT_NE(to, std::string::npos);
+  std::string writer_profile = xml.substr(from, to + std::strlen("</data_writer>") - from) + "\n";
+  writer_profile.replace(writer_profile.find("godhand.lockstep"), std::strlen("godhand.lockstep"), "test.fast_heartbeat");
+  const std::string period = "<heartbeatPeriod><sec>0</sec><nanosec>50000000</nanosec></heartbeatPeriod>";
+  const std::size_t at = writer_profile.find(period);
+  ASSERT_NE(at, std::string::npos) << "the shipped lock-step writer's heartbeat period is not 50 ms any more";
+  writer_profile.replace(at, period.size(), "<heartbeatPeriod><sec>0</sec><nanosec>1000000</nanosec></heartbeatPeriod>");
+  const std::size_t end = xml.rfind("</profiles>");
+  ASSERT_NE(end, std::string::npos);
+  xml.insert(end, writer_profile);
+  char dir[] = "/tmp/godhand_dds_teardown_XXXXXX";
+  ASSERT_NE(mkdtemp(dir), nullptr);
+  const std::string file = std::string(dir) + "/teardown.xml";
+  std::ofstream(file) << xml;
+  Children guard;
+  const pid_t reader = spawnChild("stalled-reader", 201, {"GODHAND_DDS_TEST_PROFILES=" + file});
+  ASSERT_GT(reader, 0);
+  guard.add(reader);
+  const pid_t writer = spawnChild("teardown-writer", 201,
+                                  {"GODHAND_DDS_TEST_PROFILES=" + file, "GODHAND_DDS_TEST_PEER=" + std::to_string(reader)});
+  ASSERT_GT(writer, 0);
+  guard.add(writer);
+  const int code = waitChildCleaning(writer, kChildDeadline);
+  guard.waited(writer);
+  kill(reader, SIGCONT);  // (stopped by the writer's process; it leaves once continued)
+  const int reader_code = waitChildCleaning(reader, kChildDeadline);
+  guard.waited(reader);
+  std::remove(file.c_str());
+  rmdir(dir);
+  EXPECT_EQ(code, 0) << "-1: the writers' process was killed at the deadline (stuck deleting a writer), "
+                        "3: not matched, 4: a write failed, 8: could not stop the reader";
+  EXPECT_EQ(reader_code, 0) << "9: never continued, -1: killed";
 }
 
 TEST(DdsWait, DeadlineWakeAndNoLostWakeUp) {
