@@ -821,6 +821,39 @@ TEST(DdsTopics, WritersAndReadersShareTopicsWithinAParticipant) {
   EXPECT_EQ(r2.received(), 2u);
 }
 
+// The shipped profiles file's text (kLocal).
+std::string shippedProfiles() {
+  std::ifstream in(kLocal);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+// The shipped profiles with `extra` profiles added, in a file of a new temporary directory, both
+// removed with this object. path() is "" where it could not be written.
+class ProfilesFile {
+ public:
+  explicit ProfilesFile(const std::string& extra) {
+    std::string xml = shippedProfiles();
+    const std::size_t end = xml.rfind("</profiles>");
+    char dir[] = "/tmp/godhand_dds_profiles_XXXXXX";
+    if (end == std::string::npos || mkdtemp(dir) == nullptr) return;
+    xml.insert(end, extra);
+    dir_ = dir;
+    path_ = dir_ + "/profiles.xml";
+    std::ofstream(path_) << xml;
+  }
+  ~ProfilesFile() {
+    if (dir_.empty()) return;
+    std::remove(path_.c_str());
+    rmdir(dir_.c_str());
+  }
+  ProfilesFile(const ProfilesFile&) = delete;
+  ProfilesFile& operator=(const ProfilesFile&) = delete;
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string dir_, path_;
+};
+
 // What a participant's readers were told DDS gave up on (Participant::samplesLost / samplesRejected,
 // printed on every service's exit line). A reader whose history holds 2 samples (KEEP_ALL) and is
 // not read while a reliable writer sends 4: Fast DDS rejects what does not fit (counted), none is
@@ -831,8 +864,6 @@ TEST(DdsTopics, WritersAndReadersShareTopicsWithinAParticipant) {
 // KEEP_LAST, which replaces the oldest sample instead of rejecting one.) In a child process (role
 // "limited-reader"): its profiles file is not the shipped one, and a process has one.
 TEST(DdsLosses, SamplesAReaderCannotHoldAreCountedAsRejected) {
-  std::ifstream in(kLocal);
-  std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   const std::string reader_profile = R"(
   <data_reader profile_name="test.two_samples">
     <topic>
@@ -846,21 +877,14 @@ TEST(DdsLosses, SamplesAReaderCannotHoldAreCountedAsRejected) {
     </qos>
   </data_reader>
 )";
-  const std::size_t end = xml.rfind("</profiles>");
-  ASSERT_NE(end, std::string::npos);
-  xml.insert(end, reader_profile);
-  char dir[] = "/tmp/godhand_dds_losses_XXXXXX";
-  ASSERT_NE(mkdtemp(dir), nullptr);
-  const std::string file = std::string(dir) + "/limited.xml";
-  std::ofstream(file) << xml;
-  const pid_t child = spawnChild("limited-reader", 219, {"GODHAND_DDS_TEST_PROFILES=" + file});
+  const ProfilesFile profiles(reader_profile);
+  ASSERT_FALSE(profiles.path().empty());
+  const pid_t child = spawnChild("limited-reader", 219, {"GODHAND_DDS_TEST_PROFILES=" + profiles.path()});
   ASSERT_GT(child, 0);
   Children guard;
   guard.add(child);
   const int code = waitChild(child, kChildDeadline);
   guard.waited(child);
-  std::remove(file.c_str());
-  rmdir(dir);
   EXPECT_EQ(code, 0) << "10: no rejection reported, 11: fewer than the 2 held arrived, 12: out of order, "
                         "13: a sample reported lost, 14: the writer's participant counted something, "
                         "15: the per-topic count is not the reader's topic's, 16: the writer's has a topic, "
@@ -882,8 +906,7 @@ TEST(DdsLosses, SamplesAReaderCannotHoldAreCountedAsRejected) {
 // in 3 of 3 runs (and in 2 of 3 with 30 writers of 300 samples). In child processes: the writers'
 // one stops the readers' one (SIGSTOP) once matched, the test continues it.
 TEST(DdsTeardown, WriterWithUnacknowledgedSamplesIsDeletedWhileItsHeartbeatRuns) {
-  std::ifstream in(kLocal);
-  std::string xml((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string xml = shippedProfiles();
   // The shipped lock-step writer's profile, its heartbeat every millisecond instead of 50 ms.
   const std::size_t from = xml.find("<data_writer profile_name=\"godhand.lockstep\">");
   ASSERT_NE(from, std::string::npos);
@@ -895,13 +918,9 @@ TEST(DdsTeardown, WriterWithUnacknowledgedSamplesIsDeletedWhileItsHeartbeatRuns)
   const std::size_t at = writer_profile.find(period);
   ASSERT_NE(at, std::string::npos) << "the shipped lock-step writer's heartbeat period is not 50 ms any more";
   writer_profile.replace(at, period.size(), "<heartbeatPeriod><sec>0</sec><nanosec>1000000</nanosec></heartbeatPeriod>");
-  const std::size_t end = xml.rfind("</profiles>");
-  ASSERT_NE(end, std::string::npos);
-  xml.insert(end, writer_profile);
-  char dir[] = "/tmp/godhand_dds_teardown_XXXXXX";
-  ASSERT_NE(mkdtemp(dir), nullptr);
-  const std::string file = std::string(dir) + "/teardown.xml";
-  std::ofstream(file) << xml;
+  const ProfilesFile profiles(writer_profile);
+  ASSERT_FALSE(profiles.path().empty());
+  const std::string file = profiles.path();
   Children guard;
   const pid_t reader = spawnChild("stalled-reader", 201, {"GODHAND_DDS_TEST_PROFILES=" + file});
   ASSERT_GT(reader, 0);
@@ -915,8 +934,6 @@ TEST(DdsTeardown, WriterWithUnacknowledgedSamplesIsDeletedWhileItsHeartbeatRuns)
   kill(reader, SIGCONT);  // (stopped by the writer's process; it leaves once continued)
   const int reader_code = waitChildCleaning(reader, kChildDeadline);
   guard.waited(reader);
-  std::remove(file.c_str());
-  rmdir(dir);
   EXPECT_EQ(code, 0) << "-1: the writers' process was killed at the deadline (stuck deleting a writer), "
                         "3: not matched, 4: a write failed, 8: could not stop the reader";
   EXPECT_EQ(reader_code, 0) << "9: never continued, -1: killed";
