@@ -217,15 +217,19 @@ pid_t spawnChild(const std::string& role, int domain, const std::vector<std::str
 }
 
 // The child's exit code, or -1 if it had to be killed at the deadline (or did not exit normally).
+// A child killed here (e.g. hung inside Fast DDS) leaves its shared-memory entries behind: the
+// ones it held are noted before the kill and removed once it is gone (its own, not the host's
+// port segments, which other participants share).
 int waitChild(pid_t pid, Clock::duration timeout) {
   int status = 0;
-  const bool exited = waitFor([&] { return waitpid(pid, &status, WNOHANG) == pid; }, timeout);
-  if (!exited) {
-    kill(pid, SIGKILL);
-    waitpid(pid, &status, 0);
-    return -1;
-  }
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  if (waitFor([&] { return waitpid(pid, &status, WNOHANG) == pid; }, timeout))
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  const std::set<std::string> own = shmEntriesOf(std::to_string(pid));
+  kill(pid, SIGKILL);
+  waitpid(pid, &status, 0);
+  for (const std::string& n : own)
+    if (n.find("fastrtps_port") == std::string::npos) std::remove(("/dev/shm/" + n).c_str());
+  return -1;
 }
 
 // Children not yet waited for when a test leaves early (a failed ASSERT): killed and reaped at
@@ -247,21 +251,6 @@ constexpr int kTeardownWriters = 60;
 constexpr int kTeardownSamples = 512;
 std::string teardownTopic(int k) { return "test/teardown/" + std::to_string(k); }
 volatile sig_atomic_t g_continued = 0;  // "stalled-reader": set by SIGCONT
-
-// waitChild, for a child that may hang inside Fast DDS: before it is killed at the deadline, the
-// shared-memory entries it holds are noted, and removed once it is gone (its own segments, not
-// the host's port segments, which other participants share), so that a failing run leaves none.
-int waitChildCleaning(pid_t pid, Clock::duration timeout) {
-  int status = 0;
-  if (waitFor([&] { return waitpid(pid, &status, WNOHANG) == pid; }, timeout))
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  std::set<std::string> own = shmEntriesOf(std::to_string(pid));
-  kill(pid, SIGKILL);
-  waitpid(pid, &status, 0);
-  for (const std::string& n : own)
-    if (n.find("fastrtps_port") == std::string::npos) std::remove(("/dev/shm/" + n).c_str());
-  return -1;
-}
 
 // "state-writer": writes one HandState (handState(1, 77, 16)) on godhand.state, then stays until
 // a reader has matched and gone again. "status-reader": waits for the ServiceStatus of
@@ -929,10 +918,10 @@ TEST(DdsTeardown, WriterWithUnacknowledgedSamplesIsDeletedWhileItsHeartbeatRuns)
                                   {"GODHAND_DDS_TEST_PROFILES=" + file, "GODHAND_DDS_TEST_PEER=" + std::to_string(reader)});
   ASSERT_GT(writer, 0);
   guard.add(writer);
-  const int code = waitChildCleaning(writer, kChildDeadline);
+  const int code = waitChild(writer, kChildDeadline);
   guard.waited(writer);
   kill(reader, SIGCONT);  // (stopped by the writer's process; it leaves once continued)
-  const int reader_code = waitChildCleaning(reader, kChildDeadline);
+  const int reader_code = waitChild(reader, kChildDeadline);
   guard.waited(reader);
   EXPECT_EQ(code, 0) << "-1: the writers' process was killed at the deadline (stuck deleting a writer), "
                         "3: not matched, 4: a write failed, 8: could not stop the reader";
