@@ -927,6 +927,26 @@ void MeshBvh::near(const Shape& shape, const Pose& X_MB, double max_distance, st
   }
 }
 
+bool MeshBvh::closestAmong(const std::vector<NearTriangle>& near_answer, const Shape& shape, const Pose& X_MB,
+                           double near_distance, double max_distance, NearTriangle* out) const {
+  if (near_answer.empty() || std::isnan(max_distance) || std::isnan(near_distance)) return false;
+  const double r = coreRadius(shape);
+  // near() prunes at its limit without closest()'s slack: a triangle whose bound came out a few
+  // ulps above the limit may be missing, so only what lies below limit − slack is certain.
+  const double tie = kTieSlack * (1.0 + max_coordinate_ + X_MB.p.cwiseAbs().maxCoeff());
+  const NearTriangle* best = nullptr;
+  for (const NearTriangle& t : near_answer) {
+    const double d = t.closest.core_distance;
+    if (!best || d < best->closest.core_distance ||
+        (d == best->closest.core_distance && t.triangle < best->triangle))
+      best = &t;
+  }
+  const double d = best->closest.core_distance;
+  if (!(d < near_distance + r - tie) || !(d <= max_distance + r)) return false;
+  *out = *best;
+  return true;
+}
+
 double MeshBvh::advancementStep(const Shape& shape, const Pose& X_MB, const Vec3& dp_M, const Vec3& theta_M,
                                 double eta, double horizon, NearTriangle* limiting, int hint) const {
   switch (shape.type) {

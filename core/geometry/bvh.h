@@ -52,6 +52,14 @@ class MeshBvh {
   /// Appends every triangle within max_distance of the shape at X_MB, with its closest points.
   void near(const Shape& shape, const Pose& X_MB, double max_distance, std::vector<NearTriangle>* out) const;
 
+  /// What closest(shape, X_MB, max_distance) answers, taken from `near_answer`, near()'s answer
+  /// for the same shape and pose within near_distance, without a second traversal: true with
+  /// *out (bit for bit closest()'s) where the nearest of them lies inside near_distance by more
+  /// than the bounds' round-off (then every triangle at the least distance is among them) and
+  /// within max_distance; false where the answer cannot be told from them (call closest()).
+  bool closestAmong(const std::vector<NearTriangle>& near_answer, const Shape& shape, const Pose& X_MB,
+                    double near_distance, double max_distance, NearTriangle* out) const;
+
   /// One step of directional conservative advancement (sweep.h) for the shape at X_MB moving
   /// with constant velocity over the step: origin by dp_M, rotation θ_M (rad, frame M), per unit
   /// time. Returns the largest Δ ≤ horizon such that no triangle can come within eta of the shape

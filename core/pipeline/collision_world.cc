@@ -452,13 +452,23 @@ int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body
     sample_.clear();
     // Inside a (dynamic) object the nearest surface may be farther than the reach.
     const double range = inside ? kInf : reach;
+    // The shell's triangles (below) first: where the shape is within the shell, its nearest
+    // triangle is among them, and the whole shape's closest-point query is answered from them
+    // (MeshBvh::closestAmong: the same triangle and points, bit for bit) instead of traversing
+    // the same part of the hierarchy a second time.
+    const bool shell_query = !inside && params.shell > 0.0;
+    if (shell_query) {
+      shell_.clear();
+      o.god->near(shape, X_OB, params.shell, &shell_);
+    }
     for (int k = 0; k < num_samples; ++k) {
       geo::NearTriangle c;
       const Pose X_OS{X_OB * offsets[k], X_OB.q};
       // What this sample of this body found here last time starts the search (the same result,
       // found sooner: MeshBvh::closest).
       int& hint = hintOf(object, body, k);
-      const bool found = o.god->closest(samples[k], X_OS, range, &c, hint);
+      const bool found = (k == 0 && shell_query && o.god->closestAmong(shell_, shape, X_OB, params.shell, range, &c)) ||
+                         o.god->closest(samples[k], X_OS, range, &c, hint);
       if (found) hint = c.triangle;
       if (k == 0 && start) {
         geo::SweepStart s;
@@ -483,12 +493,10 @@ int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body
         sample_.push_back(kPatchSample + i);
       }
     }
-    if (!inside && params.shell > 0.0) {
+    if (shell_query) {
       double nearest = kInf;
       for (const geo::NearTriangle& c : near_) nearest = std::min(nearest, c.closest.distance);
       if (nearest < params.shell) {
-        shell_.clear();
-        o.god->near(shape, X_OB, params.shell, &shell_);
         for (const geo::NearTriangle& c : shell_) {
           near_.push_back(c);
           sample_.push_back(kShellSample);

@@ -397,6 +397,59 @@ TEST(Bvh, HintLeavesTheClosestUnchanged) {
   EXPECT_GT(with_ties, 0);  // the tie case was exercised
 }
 
+TEST(Bvh, ClosestAmongTheShellIsTheClosestQuery) {
+  // closestAmong answers the whole shape's closest-point query from near()'s answer within a
+  // shell (CollisionWorld::contacts, for palms and bodies whose sweep hit): where it answers, the
+  // answer must be closest()'s bit for bit; where the nearest lies beyond the shell it must not.
+  // Shapes resting 0 … 0.5 mm off a random triangle (faces parallel to it, where triangles tie)
+  // or anywhere near the surface.
+  Rng rng(61);
+  const MeshBvh& bvh = bunny();
+  int answered = 0, declined = 0, empty = 0;
+  std::vector<NearTriangle> shell;
+  for (int q = 0; q < 1200; ++q) {
+    const Shape s = randomShape(rng, q);
+    Pose X = nearSurfacePose(rng, bvh.mesh());
+    if (q % 2 == 0) {
+      const int t = rng.integer(0, bvh.triangleCount() - 1);
+      const Vec3 a = bvh.mesh().vertex(t, 0), b = bvh.mesh().vertex(t, 1), c = bvh.mesh().vertex(t, 2);
+      const Vec3 n = (b - a).cross(c - a).normalized();
+      const Quat spin(Eigen::AngleAxisd(rng.uniform(0.0, 6.283), Vec3::UnitZ()));
+      X.q = Quat::FromTwoVectors(Vec3::UnitZ(), n) * spin;
+      if (s.type == ShapeType::Capsule) X.q = X.q * Quat(Eigen::AngleAxisd(1.5707963267948966, Vec3::UnitX()));
+      const double reach = s.type == ShapeType::Box ? s.half_extents.z() : s.radius;
+      X.p = (a + b + c) / 3.0 + (reach + rng.uniform(0.0, 5e-4)) * n;
+    }
+    const double shell_distance = q % 3 == 0 ? 3e-4 : 1e-4;
+    const double range = q % 5 == 0 ? 5e-5 : 0.01;  // a range below the shell too
+    shell.clear();
+    bvh.near(s, X, shell_distance, &shell);
+    NearTriangle expected, got;
+    const bool found = bvh.closest(s, X, range, &expected);
+    if (!bvh.closestAmong(shell, s, X, shell_distance, range, &got)) {
+      ++declined;
+      empty += shell.empty() ? 1 : 0;
+      // Declined only where the nearest is not certainly inside the shell and the range.
+      if (found) {
+        EXPECT_GT(expected.closest.distance, std::min(shell_distance, range) - 1e-12) << "query " << q;
+      }
+      continue;
+    }
+    ++answered;
+    ASSERT_TRUE(found) << "query " << q;
+    EXPECT_EQ(got.triangle, expected.triangle) << "query " << q;
+    EXPECT_EQ(got.closest.distance, expected.closest.distance) << "query " << q;
+    EXPECT_EQ(got.closest.core_distance, expected.closest.core_distance) << "query " << q;
+    EXPECT_EQ(got.closest.p_triangle, expected.closest.p_triangle) << "query " << q;
+    EXPECT_EQ(got.closest.p_shape, expected.closest.p_shape) << "query " << q;
+    EXPECT_EQ(got.closest.n, expected.closest.n) << "query " << q;
+  }
+  std::printf("[figure] closest among the shell: %d answered, %d declined (%d with an empty shell)\n", answered,
+              declined, empty);
+  EXPECT_GT(answered, 300);
+  EXPECT_GT(declined - empty, 0);  // some with triangles in the shell but none near enough / in range
+}
+
 TEST(Bvh, FarFromTheOrigin) {
   Rng rng(15);
   TriangleMesh m = icosphere(0.05, 2);
