@@ -364,6 +364,7 @@ struct Participant::Core {
   bool woken = false;
   // What the readers' listeners were told (Participant::samplesLost / samplesRejected).
   std::atomic<std::uint64_t> samples_lost{0}, samples_rejected{0};
+  std::atomic<std::uint64_t> samples_malformed{0};  // dropped by take(): over an IDL bound or undecodable
   mutable std::mutex losses_mutex;  // guards losses (per topic: lost, rejected)
   std::map<std::pair<std::string, bool>, std::pair<std::uint64_t, std::uint64_t>> losses;  // (topic, newest only)
   void addLosses(const std::string& topic, bool newest_only, std::uint64_t lost, std::uint64_t rejected) {
@@ -652,6 +653,7 @@ Participant::~Participant() {
 int Participant::domain() const { return core_->options.domain; }
 std::uint64_t Participant::samplesLost() const { return core_->samples_lost.load(std::memory_order_relaxed); }
 std::uint64_t Participant::samplesRejected() const { return core_->samples_rejected.load(std::memory_order_relaxed); }
+std::uint64_t Participant::samplesMalformed() const { return core_->samples_malformed.load(std::memory_order_relaxed); }
 std::vector<Participant::TopicLosses> Participant::lossesByTopic() const {
   std::vector<TopicLosses> out;
   std::lock_guard<std::mutex> lock(core_->losses_mutex);
@@ -943,12 +945,14 @@ bool Reader<T>::take(T& out) {
       rc = impl_->reader->take_next_sample(&impl_->scratch, &info);
     } catch (...) {  // a serializer exception on a malformed sample: counted, never a crash
       impl_->rejected.fetch_add(1, std::memory_order_relaxed);
+      impl_->core->samples_malformed.fetch_add(1, std::memory_order_relaxed);
       return false;
     }
     if (rc != ReturnCode_t::RETCODE_OK) return false;
     if (!info.valid_data) continue;  // dispose / unregister notifications
     if (!msg::wire_bounds::within(impl_->scratch)) {
       impl_->rejected.fetch_add(1, std::memory_order_relaxed);
+      impl_->core->samples_malformed.fetch_add(1, std::memory_order_relaxed);
       continue;
     }
     using std::swap;

@@ -98,6 +98,9 @@ class Participant {
   // that a lock-step frame that never came says whether DDS gave it up or never reported it.
   std::uint64_t samplesLost() const;
   std::uint64_t samplesRejected() const;
+  // Samples this participant's readers dropped in take() (Reader::rejected, summed): sequences
+  // over their IDL bounds or undecodable, i.e. not from one of ours.
+  std::uint64_t samplesMalformed() const;
   // The same per topic (this participant's readers of it summed), topics with none left out, by
   // topic name: a loss on a lock-step topic is not hidden among the best-effort heartbeats'.
   // newest_only: the readers were reliable and kept only the newest sample (history keep-last 1,

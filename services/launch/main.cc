@@ -472,23 +472,39 @@ int main(int argc, char** argv) {
   std::vector<std::string> foreign;
   char this_host[64] = {0};
   gethostname(this_host, sizeof this_host - 1);
-  auto noteForeign = [&](const msg::ServiceStatus& s) {
-    const std::string name = s.service().to_string();
-    bool ours_name = lab.service(name) != nullptr;
-    bool alien = !ours_name;
-    if (ours_name && specOf(name) && s.host().to_string() == this_host) {
-      if (!our_pids.count(s.pid()))
-        for (const ChildStatus& c : sup.status()) our_pids.insert(c.pid);
-      alien = !our_pids.count(s.pid());
-    }
-    if (!alien) return false;
-    const std::string who = name + " (pid " + std::to_string(s.pid()) + " on " + s.host().to_string() + ")";
+  auto reportForeign = [&](const std::string& who) {
+    if (foreign_seen.size() >= 32) return;  // bounded: a flood of distinct names is not listed
     if (foreign_seen.insert(who).second) {
+      if (foreign_seen.size() == 32) {
+        foreign.push_back("more, not listed");
+        return;
+      }
       foreign.push_back(who);
       std::printf("launch: another lab on domain %u: %s was not started by this launcher; its samples mix with this run's "
                   "(give each lab its own domain or --partition)\n", lab.domain_id, who.c_str());
       std::fflush(stdout);
     }
+  };
+  auto noteForeign = [&](const msg::ServiceStatus& s) {
+    const std::string name = s.service().to_string();
+    bool ours_name = lab.service(name) != nullptr;
+    bool alien = !ours_name;
+    std::string why;
+    if (ours_name && specOf(name)) {
+      // One this launcher runs: only from this host and from a process it started.
+      if (s.host().to_string() != this_host) {
+        alien = true;
+      } else {
+        if (!our_pids.count(s.pid()))
+          for (const ChildStatus& c : sup.status()) our_pids.insert(c.pid);
+        alien = !our_pids.count(s.pid());
+      }
+    }
+    if (!alien && !svc::plausible(s, &why)) alien = true;  // counters no service of ours sends
+    if (!alien) return false;
+    const std::string who = name + " (pid " + std::to_string(s.pid()) + " on " + s.host().to_string() + ")" +
+                            (why.empty() ? "" : ", " + why);
+    reportForeign(who);
     return true;
   };
   auto takeStatus = [&] {
@@ -808,7 +824,10 @@ int main(int argc, char** argv) {
     msg::HandState h;
     while (hs_in->take(h)) {
       const double lat = h.stamp().source_time_ns() > 0 ? static_cast<double>(svc::nowNs() - h.stamp().source_time_ns()) * 1e-3 : 0.0;
-      if (h.hand() >= C) continue;
+      if (h.hand() >= C || h.cluster() != lab.clusters[h.hand()].name) {  // not this lab's hand
+        reportForeign("a HandState of cluster '" + h.cluster().to_string() + "' (hand " + std::to_string(h.hand()) + ")");
+        continue;
+      }
       // Stale whatever the cause: flagged by the resolver, or older than the stale limit here.
       // (Lock-step frames are never stale by age: a slow deterministic run is still exact.)
       const bool too_old = !lockstep && h.stamp().source_time_ns() > 0 && lat * 1e-6 > stale_after;

@@ -136,7 +136,7 @@ int main(int argc, char** argv) {
     while (proposals_in.take(mp)) {
       ++service.samples_in;
       const std::uint32_t h = mp.hand();
-      if (h >= C) { service.reject("hand_proposal: hand index " + std::to_string(h) + " not in the lab"); continue; }
+      if (h >= C) { service.reject("hand_proposal: hand index not in the lab"); continue; }
       if (mp.cluster() != lab.clusters[h].name) { service.reject("hand_proposal: cluster name does not match the lab (another lab on this domain?)"); continue; }
       if (!svc::fromWire(mp, models[h].bodies.size(), objects, &tmp, &why)) { service.reject("hand_proposal: " + why); continue; }
       if (mp.loads_truncated()) service.reject("hand_proposal: more loaded contacts than the wire carries (dropped; not bit-identical)");
@@ -257,6 +257,9 @@ int main(int argc, char** argv) {
       std::fill(live.have.begin(), live.have.end(), 0);
     }
   }
+  if (merge.recoveries() > 0)
+    std::fprintf(stderr, "resolver: live merge followed a cluster again %llu time(s) after everything it sent had been behind its book for %.2f s (a sample far ahead, e.g. from another writer)\n",
+                 static_cast<unsigned long long>(merge.recoveries()), stale_after);
   const ResolverCounters& rc = resolver->counters();
   std::fprintf(stderr, "resolver: proposals trusted as swept %llu, swept again %llu (kept at the last result %llu), clipped %llu, held %llu\n",
                static_cast<unsigned long long>(rc.trusted), static_cast<unsigned long long>(rc.reswept),

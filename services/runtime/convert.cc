@@ -10,6 +10,8 @@ constexpr std::size_t kMaxLoads = 256;      // HandProposal.loads bound
 constexpr std::size_t kMaxApplied = 320;    // ContactForces.contacts bound
 constexpr std::size_t kMaxGodBodies = 96;   // ContactForces.god_bodies bound
 constexpr std::size_t kMaxWrenches = 64;    // ContactForces.objects bound
+constexpr int kMaxSubsteps = 1 << 16;       // far above any round count a step takes
+constexpr int kMaxContacts = 1 << 20;       // far above any contact count a step has
 
 Vec3 vec(const std::array<double, 3>& a) { return Vec3(a[0], a[1], a[2]); }
 void put(const Vec3& v, std::array<double, 3>* a) { *a = {v.x(), v.y(), v.z()}; }
@@ -53,6 +55,27 @@ void putDiagnostics(const StepDiagnostics& d, Msg* out, msg::SolverTimes* times)
   out->clipped(d.clipped);
   out->started_inside(d.started_inside);
 }
+/// The diagnostics a real step can carry: residuals and joint errors ≥ 0 (not NaN; +inf is a
+/// diverged solve's), a TOC in [0, 1], times finite and ≥ 0, a known status, counts in range. A
+/// sample with anything else is not one of ours (or is corrupt): rejected, so that no NaN reaches
+/// a HandState or a report.
+bool validDiagnostics(const StepDiagnostics& d, std::int32_t wire_status, std::string* why) {
+  auto nonNegative = [](double x) { return x >= 0.0; };  // false for NaN
+  auto time = [](double x) { return std::isfinite(x) && x >= 0.0; };
+  if (!nonNegative(d.kkt)) return fail(why, "kkt: NaN or negative");
+  if (!nonNegative(d.joint_errors.gap) || !nonNegative(d.joint_errors.lock) || !nonNegative(d.joint_errors.limit))
+    return fail(why, "joint errors: NaN or negative");
+  if (!(d.toc >= 0.0 && d.toc <= 1.0)) return fail(why, "toc: not in [0, 1]");
+  if (!time(d.times.contacts_us) || !time(d.times.assembly_us) || !time(d.times.solve_us) ||
+      !time(d.times.integrate_us) || !time(d.times.ccd_us))
+    return fail(why, "solver times: not finite or negative");
+  if (wire_status < 0 || wire_status > static_cast<std::int32_t>(SolveStatus::NumericalFailure))
+    return fail(why, "status: unknown");
+  if (d.substeps < 0 || d.substeps > kMaxSubsteps) return fail(why, "substeps: out of range");
+  if (d.contacts < 0 || d.contacts > kMaxContacts) return fail(why, "contact count: out of range");
+  return true;
+}
+
 template <class Msg>
 StepDiagnostics diagnostics(const Msg& in, const msg::SolverTimes& times, std::uint32_t contacts) {
   StepDiagnostics d;
@@ -157,10 +180,14 @@ bool fromWire(const msg::HandProposal& in, std::size_t bodies, int objects, Hand
     l.lambda = c.lambda();
     if (l.body < 0 || static_cast<std::size_t>(l.body) >= bodies || l.object < 0 || l.object >= objects)
       return fail(why, "loads[" + std::to_string(i) + "]: body or object index out of range");
-    if (!finite(l.p_W) || !finite(l.n_W) || !std::isfinite(l.lambda))
-      return fail(why, "loads[" + std::to_string(i) + "]: not finite");
+    if (!finite(l.p_W) || !finite(l.n_W) || !std::isfinite(l.lambda) || l.lambda < 0.0)
+      return fail(why, "loads[" + std::to_string(i) + "]: not finite or negative force");
   }
+  if (in.contact_count() > static_cast<std::uint32_t>(kMaxContacts) ||
+      in.substeps() > static_cast<std::uint32_t>(kMaxSubsteps))
+    return fail(why, "contact or substep count: out of range");
   out->diag = diagnostics(in, in.times(), in.contact_count());
+  if (!validDiagnostics(out->diag, in.status(), why)) return false;
   out->swept = in.swept();
   return true;
 }
@@ -195,10 +222,16 @@ bool fromWire(const msg::HandState& in, std::size_t bodies, HandResult* out, std
   out->lifted_start = in.lifted_start();
   out->loaded = in.loaded();
   if (!poses(in.poses(), bodies, "poses", &out->X, why)) return false;
+  if (in.contacts() > static_cast<std::uint32_t>(kMaxContacts) || in.substeps() > static_cast<std::uint32_t>(kMaxSubsteps))
+    return fail(why, "contact or substep count: out of range");
   out->diag = diagnostics(in, in.solver_times(), in.contacts());
+  if (!validDiagnostics(out->diag, in.status(), why)) return false;
   out->force_N = in.force_n();
   out->ccd_us = in.ccd_us();
   out->merge_us = in.merge_us();
+  if (!(std::isfinite(out->force_N) && out->force_N >= 0.0) || !(std::isfinite(out->ccd_us) && out->ccd_us >= 0.0) ||
+      !(std::isfinite(out->merge_us) && out->merge_us >= 0.0))
+    return fail(why, "force or times: not finite or negative");
   return true;
 }
 
@@ -278,7 +311,8 @@ bool fromWire(const msg::ContactForces& in, int objects, ForceSet* out, std::str
     g.shape.half_extents = vec(w.shape().half_extents());
     g.X = fromWire(w.pose());
     if (!isValidPose(g.X, 1e-6) || !std::isfinite(g.shape.radius) || g.shape.radius < 0.0 ||
-        !std::isfinite(g.shape.half_length) || !finite(g.shape.half_extents))
+        !std::isfinite(g.shape.half_length) || g.shape.half_length < 0.0 || !finite(g.shape.half_extents) ||
+        (g.shape.half_extents.array() < 0.0).any())
       return fail(why, "god_bodies[" + std::to_string(i) + "]: bad shape or pose");
   }
   return true;
@@ -316,7 +350,9 @@ bool fromWire(const msg::SceneState& in, int objects, SceneSnapshot* out, std::s
     m.w = vec(o.w());
     if (m.index < 0 || m.index >= objects) return fail(why, "objects[" + std::to_string(i) + "]: index out of range");
     if (!isValidPose(m.X, 1e-6)) return fail(why, "objects[" + std::to_string(i) + "]: pose not finite or not unit");
+    if (!finite(m.v) || !finite(m.w)) return fail(why, "objects[" + std::to_string(i) + "]: velocity not finite");
   }
+  if (!(std::isfinite(out->step_us) && out->step_us >= 0.0)) return fail(why, "step_us: not finite or negative");
   return true;
 }
 
@@ -360,6 +396,25 @@ SourceCounts fromWire(const msg::SourceCounts& in, std::uint64_t* run) {
   for (const msg::ReasonCount& r : in.rejected())
     if (r.count() > 0) c.rejected[r.reason().to_string()] += r.count();
   return c;
+}
+
+bool plausible(const msg::ServiceStatus& s, std::string* why) {
+  // No real run counts 2^53 of anything (that is 3,000 years of frames at 100 kHz); above it
+  // sums over runs could wrap, and doubles no longer hold every count.
+  constexpr std::uint64_t kMaxCount = std::uint64_t{1} << 53;
+  if (!std::isfinite(s.rate_hz()) || s.rate_hz() < 0.0) return fail(why, "rate not finite or negative");
+  if (!std::isfinite(s.latency_median_us())) return fail(why, "latency not finite");
+  for (const std::uint64_t c : {s.frame(), s.samples_in(), s.samples_out(), s.rejected(), s.late(), s.deadline_misses()})
+    if (c > kMaxCount) return fail(why, "a counter above 2^53");
+  const msg::SourceCounts& src = s.source();
+  std::uint64_t rejected = 0;
+  for (const msg::ReasonCount& r : src.rejected()) {
+    if (r.count() > kMaxCount) return fail(why, "a source count above 2^53");
+    rejected += r.count();  // at most 16 × 2^53: no wrap
+  }
+  if (src.received() > kMaxCount || src.accepted() > kMaxCount || rejected > kMaxCount)
+    return fail(why, "a source count above 2^53");
+  return true;
 }
 
 }  // namespace godhand::svc

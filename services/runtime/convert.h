@@ -57,4 +57,9 @@ void toWire(std::uint64_t run, const SourceCounts& c, msg::SourceCounts* out);
 /// The counts and their run (0: the sample carries no source).
 SourceCounts fromWire(const msg::SourceCounts& in, std::uint64_t* run);
 
+/// A heartbeat a service of ours can send: finite rate and latency, every counter (and the
+/// source's counts and their sum) at most 2^53. Else false with the reason (a hostile or corrupt
+/// sample, whose counts would wrap sums or print NaN in a report).
+bool plausible(const msg::ServiceStatus& s, std::string* why);
+
 }  // namespace godhand::svc

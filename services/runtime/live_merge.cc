@@ -17,15 +17,32 @@ LiveMerge::LiveMerge(size_t clusters, double period_s, double merge_wait, double
 
 LiveMerge::Offer LiveMerge::offer(size_t h, std::uint64_t run, std::uint64_t frame, std::int64_t source_ns, Clock::time_point now) {
   Offer result = Offer::Accepted;
+  // Nothing of cluster h accepted for stale_after while its samples keep coming: what comes is
+  // followed again. (A sample whose frame number or source time is far ahead, e.g. a hostile one,
+  // would otherwise make every later sample of the real run late, for good.)
+  const bool quiet = last_in_[h] == Clock::time_point{} || now - last_in_[h] >= seconds(stale_after_);
   if (run != run_) {
-    if (run_ != 0 && source_ns < run_source_ns_) return Offer::Late;  // a straggler of an old run
+    if (run_ != 0 && !quiet) {
+      // A straggler of an old run; or a new run whose source time is ahead of the current run's
+      // by more than the time since the current run's newest sample came (plus clock skew): not
+      // a restarted ingest's.
+      const double since = std::chrono::duration<double>(now - last_accept_).count();
+      if (source_ns < run_source_ns_ ||
+          static_cast<double>(source_ns) - static_cast<double>(run_source_ns_) > (since + kRunSkew_s) * 1e9)
+        return Offer::Late;
+    }
     run_ = run;
+    run_source_ns_ = source_ns;
     std::fill(done_h_.begin(), done_h_.end(), 0);
     std::fill(have_.begin(), have_.end(), 0);
     result = Offer::NewRun;
+  } else if (frame <= done_h_[h]) {
+    if (!quiet) return Offer::Late;
+    done_h_[h] = 0;  // the book of this cluster was ahead of what comes: start it again
+    ++recoveries_;
   }
   run_source_ns_ = std::max(run_source_ns_, source_ns);
-  if (frame <= done_h_[h]) return Offer::Late;
+  last_accept_ = now;
   if (have_[h]) result = Offer::Superseded;
   bool any = false;
   for (unsigned char x : have_) any = any || x;

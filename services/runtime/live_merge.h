@@ -4,7 +4,10 @@
 // `merge_wait` frame periods after the first one came (a cluster silent for stale_after is not
 // waited for and is held); with nothing new for stale_after, the held hands are re-published (as
 // stale) so subscribers see that nothing moves them. A new ingest run (Stamp.run; frame numbers
-// start again) replaces the old one; a straggler of an older run is late. Injected clock.
+// start again) replaces the old one; a straggler of an older run is late, and so is a new run
+// whose source time is implausibly far ahead while the current run is live. A cluster of which
+// nothing was accepted for stale_after follows what comes again (its book restarts): no single
+// sample, however far ahead its frame or time, stops the merge for longer. Injected clock.
 #pragma once
 
 #include <chrono>
@@ -37,6 +40,10 @@ class LiveMerge {
   std::uint64_t frameOf(size_t h) const { return frame_[h]; }
   std::uint64_t run() const { return run_; }
   std::uint64_t done() const { return done_; }
+  /// Times a cluster's book was restarted because everything that came was behind it.
+  std::uint64_t recoveries() const { return recoveries_; }
+  /// s: how far a new run's source time may lead the current run's beyond the time elapsed here.
+  static constexpr double kRunSkew_s = 2.0;
 
  private:
   Clock::duration seconds(double s) const {
@@ -47,8 +54,8 @@ class LiveMerge {
   std::vector<unsigned char> have_;
   std::vector<std::uint64_t> frame_, done_h_;
   std::vector<Clock::time_point> last_in_;
-  Clock::time_point first_pending_{}, last_publish_;
-  std::uint64_t run_ = 0, done_ = 0;
+  Clock::time_point first_pending_{}, last_publish_, last_accept_{};
+  std::uint64_t run_ = 0, done_ = 0, recoveries_ = 0;
   std::int64_t run_source_ns_ = 0;
 };
 

@@ -86,12 +86,16 @@ const char* Service::stateProfile() const { return opt_.lockstep ? dds::profile:
 double Service::deadlineSeconds() const { return opt_.deadline_s > 0.0 ? opt_.deadline_s : lab_.deadline_s; }
 
 void Service::reject(const std::string& reason) {
-  const std::uint64_t n = ++rejects_[reason];
+  // Bounded: a reason is a fixed text, but a hostile stream could still bring many (each logged
+  // three times): past kMaxReasons the rest are counted together.
+  constexpr std::size_t kMaxReasons = 32;
+  const bool known = rejects_.count(reason) != 0;
+  const std::uint64_t n = ++rejects_[known || rejects_.size() < kMaxReasons ? reason : std::string("other reasons")];
   if (n <= 3) std::fprintf(stderr, "%s: rejected input: %s%s\n", name_.c_str(), reason.c_str(), n == 3 ? " (further ones counted only)" : "");
 }
 
 std::uint64_t Service::rejected() const {
-  std::uint64_t n = 0;
+  std::uint64_t n = participant_ ? participant_->samplesMalformed() : 0;  // dropped by the readers
   for (const auto& r : rejects_) n += r.second;
   return n;
 }
@@ -161,6 +165,9 @@ int Service::finish(int code, const std::string& why) {
                static_cast<unsigned long long>(late), static_cast<unsigned long long>(deadline_misses));
   for (const auto& r : rejects_)
     std::fprintf(stderr, "%s:   rejected %llu: %s\n", name_.c_str(), static_cast<unsigned long long>(r.second), r.first.c_str());
+  if (participant_ && participant_->samplesMalformed() > 0)
+    std::fprintf(stderr, "%s:   rejected %llu: DDS: samples over their IDL bounds or undecodable (dropped by the readers)\n",
+                 name_.c_str(), static_cast<unsigned long long>(participant_->samplesMalformed()));
   if (participant_)
     std::fprintf(stderr, "%s:   DDS: samples lost %llu, rejected by the readers' limits %llu\n", name_.c_str(),
                  static_cast<unsigned long long>(participant_->samplesLost()),

@@ -142,6 +142,7 @@ int main(int argc, char** argv) {
     }
     while (state_in.take(hs)) {
       if (hs.hand() != index) continue;
+      if (hs.cluster() != cluster_name) { service.reject("hand_state: cluster name does not match the lab (another lab on this domain?)"); continue; }
       HandResult r;
       if (!svc::fromWire(hs, n, &r, &why)) { service.reject("hand_state: " + why); continue; }
       if (service.lockstep()) {

@@ -4,6 +4,8 @@
 // types (what the services do), must give bit-identical poses on a real recording and scene.
 #include <gtest/gtest.h>
 
+#include <functional>
+
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -90,6 +92,51 @@ TEST(Convert, ProposalRoundTripIsBitExactAndChecked) {
   bad.loads()[0].object(4);  // the scene has objects 0..3
   EXPECT_FALSE(svc::fromWire(bad, 16, 4, &q, &why));
   EXPECT_NE(why.find("out of range"), std::string::npos) << why;
+  // Diagnostics no step can produce (a hostile or corrupt sample): rejected with the field named,
+  // never carried into a HandState (reviewed: NaN kkt/toc/joint errors reached HandState).
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::pair<std::function<void(msg::HandProposal&)>, const char*> hostile[] = {
+      {[&](msg::HandProposal& m) { m.kkt(nan); }, "kkt"},
+      {[&](msg::HandProposal& m) { m.kkt(-1.0); }, "kkt"},
+      {[&](msg::HandProposal& m) { m.toc(nan); }, "toc"},
+      {[&](msg::HandProposal& m) { m.toc(1.5); }, "toc"},
+      {[&](msg::HandProposal& m) { m.joint_gap(nan); }, "joint errors"},
+      {[&](msg::HandProposal& m) { m.joint_limit(-1e-3); }, "joint errors"},
+      {[&](msg::HandProposal& m) { m.times().solve_us(std::numeric_limits<double>::infinity()); }, "solver times"},
+      {[&](msg::HandProposal& m) { m.status(99); }, "status"},
+      {[&](msg::HandProposal& m) { m.substeps(0xffffffffu); }, "substep"},
+      {[&](msg::HandProposal& m) { m.contact_count(0xffffffffu); }, "contact"},
+      {[&](msg::HandProposal& m) { m.loads()[0].lambda(-2.0); }, "negative force"},
+  };
+  for (const auto& [spoil, field] : hostile) {
+    bad = w;
+    spoil(bad);
+    EXPECT_FALSE(svc::fromWire(bad, 16, 4, &q, &why)) << field;
+    EXPECT_NE(why.find(field), std::string::npos) << why;
+  }
+  // A diverged solve's residual (+inf) is a real step's: carried, not rejected.
+  bad = w;
+  bad.kkt(std::numeric_limits<double>::infinity());
+  EXPECT_TRUE(svc::fromWire(bad, 16, 4, &q, &why)) << why;
+
+  // The same checks on a HandState (what solvers adopt and the launcher scores).
+  HandResult r;
+  r.X = p.X_new;
+  r.diag = p.diag;
+  r.force_N = 0.5;
+  HandModel model;
+  model.bodies.resize(16);
+  msg::HandState ws;
+  svc::toWire(r, model, false, &ws);
+  HandResult rr;
+  ASSERT_TRUE(svc::fromWire(ws, 16, &rr, &why)) << why;
+  msg::HandState bad_state = ws;
+  bad_state.toc(nan);
+  EXPECT_FALSE(svc::fromWire(bad_state, 16, &rr, &why));
+  EXPECT_NE(why.find("toc"), std::string::npos) << why;
+  bad_state = ws;
+  bad_state.force_n(nan);
+  EXPECT_FALSE(svc::fromWire(bad_state, 16, &rr, &why));
 }
 
 TEST(Convert, TargetsRejectBadCountsAndUndrivenPalm) {
@@ -178,6 +225,14 @@ TEST(Convert, ForcesAndSceneRoundTrip) {
   ASSERT_TRUE(svc::fromWire(ws, 2, &rs, &why)) << why;
   EXPECT_TRUE(sameBits(rs.objects[0].X, s.objects[0].X) && sameBits(rs.objects[0].w, s.objects[0].w));
   EXPECT_FALSE(svc::fromWire(ws, 1, &rs, &why));  // object index 1 out of range
+  msg::SceneState bad_scene = ws;
+  bad_scene.objects()[0].v()[0] = std::nan("");
+  EXPECT_FALSE(svc::fromWire(bad_scene, 2, &rs, &why));
+  EXPECT_NE(why.find("velocity"), std::string::npos) << why;
+  w.contacts()[0].lambda(1.0);
+  w.god_bodies()[0].shape().half_length(-0.01);
+  EXPECT_FALSE(svc::fromWire(w, 2, &r, &why));
+  EXPECT_NE(why.find("god_bodies[0]"), std::string::npos) << why;
 }
 
 // A scene at the wire's bound (10,000 dynamic objects, issue 14) goes through bit for bit; one

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <cstdint>
 
 #include "runtime/live_merge.h"
 #include "runtime/lockstep_gate.h"
@@ -111,6 +112,48 @@ TEST(LiveMerge, LateAndOldRunsAreDroppedANewRunReplacesTheOld) {
   EXPECT_EQ(m.run(), 9u);
   EXPECT_EQ(m.offer(0, 7, 6, 6000, T0 + 3ms), M::Offer::Late);   // a straggler of the old run
   EXPECT_EQ(m.run(), 9u);
+}
+
+TEST(LiveMerge, NoSingleSampleFarAheadStopsTheRealRun) {
+  // 1 cluster, 20 ms frames, stale after 250 ms; the real run 7 sends a frame every 20 ms with
+  // source times 20 ms apart (ns).
+  const std::int64_t ms = 1000000;
+  M m(1, 0.020, 0.5, 0.25, T0);
+  auto real = [&](std::uint64_t k) { return m.offer(0, 7, k, static_cast<std::int64_t>(k) * 20 * ms, T0 + k * 20ms); };
+  auto resolve = [&](G::Clock::time_point now) {
+    const M::Decision d = m.decide(true, now);
+    if (d.kind == M::Decision::Resolve) m.published(d, now);
+    return d.kind;
+  };
+  EXPECT_EQ(real(1), M::Offer::NewRun);
+  EXPECT_EQ(resolve(T0 + 20ms), M::Decision::Resolve);
+  // A forged run whose source time is the largest there is: late, the real run goes on.
+  EXPECT_EQ(m.offer(0, 1, 1, INT64_MAX, T0 + 30ms), M::Offer::Late);
+  EXPECT_EQ(m.run(), 7u);
+  EXPECT_EQ(real(2), M::Offer::Accepted);
+  EXPECT_EQ(resolve(T0 + 40ms), M::Decision::Resolve);
+  // A forged frame of the real run far ahead: accepted and resolved (nothing tells it apart)...
+  EXPECT_EQ(m.offer(0, 7, std::uint64_t{1} << 63, 45 * ms, T0 + 45ms), M::Offer::Accepted);
+  EXPECT_EQ(resolve(T0 + 45ms), M::Decision::Resolve);
+  // ... so the real frames are late, but only until nothing was accepted for 250 ms: then they
+  // are followed again and resolved.
+  EXPECT_EQ(real(3), M::Offer::Late);
+  EXPECT_EQ(real(14), M::Offer::Late);   // T0 + 280 ms: 235 ms after the forged frame
+  EXPECT_EQ(real(15), M::Offer::Accepted);  // T0 + 300 ms: 255 ms
+  EXPECT_EQ(m.recoveries(), 1u);
+  EXPECT_EQ(resolve(T0 + 300ms), M::Decision::Resolve);
+  EXPECT_EQ(real(16), M::Offer::Accepted);
+  EXPECT_EQ(m.recoveries(), 1u);
+  // A restarted ingest whose clock is an hour ahead (another host): while run 7 is live it is
+  // not believed; once run 7 has been quiet for 250 ms it replaces it.
+  const std::int64_t hour = 3600LL * 1000 * ms;
+  EXPECT_EQ(m.offer(0, 9, 1, 330 * ms + hour, T0 + 330ms), M::Offer::Late);
+  EXPECT_EQ(m.offer(0, 9, 20, 700 * ms + hour, T0 + 700ms), M::Offer::NewRun);
+  EXPECT_EQ(m.run(), 9u);
+  EXPECT_EQ(resolve(T0 + 700ms), M::Decision::Resolve);
+  EXPECT_EQ(m.offer(0, 9, 21, 720 * ms + hour, T0 + 720ms), M::Offer::Accepted);
+  // And a straggler of run 7 now is late (older source time, run 9 live).
+  EXPECT_EQ(m.offer(0, 7, 17, 340 * ms, T0 + 730ms), M::Offer::Late);
 }
 
 TEST(LiveMerge, RepublishesHeldHandsWhenNothingComesAndNeverWithoutAScene) {
