@@ -72,6 +72,11 @@ Retargeter::Retargeter(const HandModel& model, const RetargetOptions& options) :
     }
     if (finger == kThumb && !model_right_) model_right_ = b.X_MB_rest.p.x() < 0.0;
   }
+  bool any_driven = false;
+  for (std::size_t i = 0; i < n; ++i) any_driven = any_driven || !model_.bodies[i].tracker_segment.empty();
+  if (!any_driven)
+    throw std::invalid_argument("model '" + model_.name + "': no body has a tracker_segment, so nothing would drive this hand "
+                                "(give its palm tracker_segment \"palm\" and its phalanges theirs)");
   for (std::size_t i = 0; i < n; ++i) {
     const Drive& d = drive_[i];
     if (d.kind != Kind::kPhalanx) continue;

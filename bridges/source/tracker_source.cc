@@ -81,8 +81,10 @@ class Plausibility {
       }
       Last& l = last_[h.right ? 1 : 0];
       const std::int64_t dt_us = f->timestamp_us - l.t_us;
-      if (l.valid && dt_us > 0 && dt_us <= 500000 &&
-          (h.X_W_palm.p - l.p).norm() / (static_cast<double>(dt_us) * 1e-6) > o_.max_speed_mps) {
+      // (A frame with the last one's timestamp counts as 1 ms later: a jump there is not waved
+      // through as if no time had passed to judge it by.)
+      if (l.valid && dt_us >= 0 && dt_us <= 500000 &&
+          (h.X_W_palm.p - l.p).norm() / (static_cast<double>(std::max<std::int64_t>(dt_us, 1000)) * 1e-6) > o_.max_speed_mps) {
         ++jumps;
         continue;
       }

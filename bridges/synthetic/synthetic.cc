@@ -1,5 +1,6 @@
 #include "synthetic/synthetic.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <limits>
@@ -54,12 +55,17 @@ std::vector<Vec3> handLandmarks(bool right, const Vec3& palm, double curl, doubl
   return p;
 }
 
+namespace {
+constexpr int kMaxScriptFrames = 360000;  // an hour at 100 Hz
+}  // namespace
+
 Script parseScript(const std::string& text, const std::string& name) {
   Script sc;
   std::istringstream in(text);
   std::string line;
   int n = 0;
   bool header = false, moved = false;
+  double total_frames = 0.0;
   while (std::getline(in, line)) {
     ++n;
     const size_t hash = line.find('#');
@@ -74,6 +80,7 @@ Script parseScript(const std::string& text, const std::string& name) {
     }
     std::vector<std::string> tok;
     int hands_on_line[2] = {0, 0};
+    double line_seconds = -1.0;  // the frames this line emits: its longest timed motion (hold: its time)
     for (size_t part = 0; part < parts.size(); ++part) {
       tok.clear();
       std::istringstream ls(parts[part]);
@@ -157,7 +164,16 @@ Script parseScript(const std::string& text, const std::string& name) {
       }
       if (parts.size() > 1 && ++hands_on_line[c.side] > 1) fail(name, n, "one motion per hand on a line");
       moved = true;
+      if (c.op == "move" || c.op == "curl" || c.op == "roll" || c.op == "hold") line_seconds = std::max(line_seconds, c.seconds);
       sc.commands.push_back(c);
+    }
+    if (line_seconds >= 0.0) {
+      // Every frame is made up front: the script's length is bounded, not the machine's memory.
+      total_frames += std::max(1.0, std::round(line_seconds * sc.rate_hz));
+      if (total_frames > kMaxScriptFrames)
+        fail(name, n, "the script makes more than " + std::to_string(kMaxScriptFrames) + " frames (" +
+                          std::to_string(static_cast<long long>(std::round(kMaxScriptFrames / sc.rate_hz))) +
+                          " s at its rate): shorten it or lower its rate");
     }
   }
   if (!header) fail(name, n, "empty script (first line must be 'godhand-synthetic 1')");

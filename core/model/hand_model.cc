@@ -185,6 +185,11 @@ HandModel HandModel::fromText(const std::string& text, const std::string& source
   model.name = msg.name().empty() ? source : msg.name();
   model.notes = msg.notes();
   if (msg.bodies_size() == 0) throw ModelError(source + ":1: bodies: a model needs at least one body");
+  if (msg.bodies_size() > kMaxModelBodies)
+    throw ModelError(source + ":1: bodies: " + std::to_string(msg.bodies_size()) + " bodies; a model has at most " +
+                     std::to_string(kMaxModelBodies) + " (the poses a hand's samples carry)");
+  if (!pb::RotationWeight_IsValid(msg.rotation_weight()))
+    throw ModelError(source + ":1: rotation_weight: unknown value " + std::to_string(static_cast<int>(msg.rotation_weight())));
 
   std::set<std::string> names;
   for (int i = 0; i < msg.bodies_size(); ++i) {

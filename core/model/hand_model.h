@@ -79,6 +79,9 @@ class ModelError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// Bodies a model may have: the wire's bound on the poses of one hand (idl/godhand.idl).
+constexpr int kMaxModelBodies = 32;
+
 struct HandModel {
   std::string name;
   std::vector<Body> bodies;

@@ -296,7 +296,8 @@ Scene parseScene(const std::string& text, const std::string& source, const std::
   scene.name = msg.name().empty() ? fs::path(source).stem().string() : msg.name();
   if (msg.has_gravity()) {
     scene.gravity = toVec(msg.gravity());
-    if (!scene.gravity.allFinite()) throw SceneError(locate(source, msg, &tree, "gravity", 1, "gravity") + "must be finite");
+    if (!scene.gravity.allFinite() || scene.gravity.norm() > 1000.0)
+      throw SceneError(locate(source, msg, &tree, "gravity", 1, "gravity") + "must be finite and at most 1000 m/s² (100 g)");
   }
   if (msg.objects_size() == 0) throw SceneError(source + ":1: objects: a scene needs at least one object");
 
@@ -350,9 +351,12 @@ Scene parseScene(const std::string& text, const std::string& source, const std::
 
     // God fidelity.
     using GF = pb::GodGeometry;
+    if (!GF::Fidelity_IsValid(po.god().fidelity())) bad("god", "unknown fidelity " + std::to_string(static_cast<int>(po.god().fidelity())));
+    if (!pb::PhysicsGeometry::Fidelity_IsValid(po.physics().fidelity()))
+      bad("physics", "unknown fidelity " + std::to_string(static_cast<int>(po.physics().fidelity())));
     const GF::Fidelity god_f = po.god().fidelity() == GF::FIDELITY_DEFAULT ? GF::FULL : po.god().fidelity();
-    if (god_f == GF::DECIMATED && po.god().target_triangles() < 4)
-      bad("god", "DECIMATED needs target_triangles >= 4");
+    if (god_f == GF::DECIMATED && (po.god().target_triangles() < 4 || po.god().target_triangles() > 100000000))
+      bad("god", "DECIMATED needs target_triangles in [4, 100000000], got " + std::to_string(po.god().target_triangles()));
     if (god_f != GF::DECIMATED && po.god().target_triangles() != 0)
       bad("god", "target_triangles applies to DECIMATED only");
     const bool tolerance_set = po.god().tolerance_mm() != 0.0;

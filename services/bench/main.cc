@@ -566,6 +566,11 @@ int main(int argc, char** argv) {
       t_progress = now;
       std::fprintf(stderr, "godhand-bench: frame %zu/%zu\n", fi + 1, n_frames);
     }
+    if (!args.poses.empty() && !poses_out) fail(args.poses + ": write failed at frame " + std::to_string(fi) + " (disk full?)");
+  }
+  if (!args.poses.empty()) {
+    poses_out.close();
+    if (poses_out.fail()) fail(args.poses + ": write failed (disk full?)");
   }
   const PipelineCounters& c = pipe->counters();
   const RunSummary sum = metrics->summary();

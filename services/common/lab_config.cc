@@ -201,16 +201,16 @@ LabConfig parseLab(const std::string& text, const std::string& source, const std
   if (!msg.recording().empty()) lab.recording = existingFile(msg.recording(), base, top, "recording", "recording");
 
   if (msg.deadline_s() != 0.0) {
-    if (!std::isfinite(msg.deadline_s()) || msg.deadline_s() < 0.0)
-      top.fail("deadline_s", "must be a finite number of seconds > 0 (0 or absent = 10), got " + num(msg.deadline_s()));
+    if (!std::isfinite(msg.deadline_s()) || msg.deadline_s() < 0.0 || msg.deadline_s() > 3600.0)
+      top.fail("deadline_s", "must be a number of seconds in (0, 3600] (0 or absent = 10), got " + num(msg.deadline_s()));
     lab.deadline_s = msg.deadline_s();
   } else {
     lab.deadline_s = kDefaultDeadlineS;
   }
   if (msg.stale_after_s() != 0.0) {
-    if (!std::isfinite(msg.stale_after_s()) || msg.stale_after_s() < 0.0)
+    if (!std::isfinite(msg.stale_after_s()) || msg.stale_after_s() < 0.0 || msg.stale_after_s() > 3600.0)
       top.fail("stale_after_s",
-               "must be a finite number of seconds > 0 (0 or absent = 0.25), got " + num(msg.stale_after_s()));
+               "must be a number of seconds in (0, 3600] (0 or absent = 0.25), got " + num(msg.stale_after_s()));
     lab.stale_after_s = msg.stale_after_s();
   } else {
     lab.stale_after_s = kDefaultStaleAfterS;
@@ -218,6 +218,9 @@ LabConfig parseLab(const std::string& text, const std::string& source, const std
 
   // Clusters.
   if (msg.clusters_size() == 0) top.fail("clusters", "a lab needs at least one cluster (clusters { name model side })");
+  if (msg.clusters_size() > kMaxLabClusters)
+    top.fail("clusters", std::to_string(msg.clusters_size()) + " clusters; a lab has at most " + std::to_string(kMaxLabClusters) +
+                             " (the resolver merges at most that many)");
   const FieldDescriptor* f_clusters = msg.GetDescriptor()->FindFieldByName("clusters");
   std::map<std::string, int> cluster_index;
   std::vector<int> cluster_line;
@@ -350,6 +353,15 @@ LabConfig parseLab(const std::string& text, const std::string& source, const std
                              " (hosts: " + host_names + ")");
     s.local = isLocalHost(s.host);
     s.args.assign(ps.args().begin(), ps.args().end());
+    // The options godhand-launch gives every service from the lab itself: a service's args may
+    // not give them again (a second --domain would take the service into another domain).
+    for (const std::string& a : s.args) {
+      const std::string opt = a.substr(0, a.find('='));
+      for (const char* mine : {"--lab", "--domain", "--profiles", "--frame-rate", "--scene", "--lockstep", "--cluster",
+                               "--source", "--partition"})
+        if (opt == mine)
+          where.fail("args", "args may not set " + opt + ": godhand-launch sets it from the lab (and its own options)");
+    }
     lab.services.push_back(std::move(s));
   }
   const int services_line = msg.services_size() > 0 ? lineOf(msg, &tree, "services", 0, 1) : 1;

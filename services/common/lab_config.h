@@ -14,6 +14,9 @@
 
 namespace godhand {
 
+/// Clusters a lab may have: the resolver merges at most this many.
+constexpr int kMaxLabClusters = 16;
+
 /// Bad or unreadable lab file: one line "FILE:LINE: field: reason", e.g.
 /// "lab.pbtxt:12: clusters[1].side: must be \"right\" or \"left\", got \"up\"".
 /// LINE is that of the offending field when known (else of the enclosing entry, else 0 for

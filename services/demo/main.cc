@@ -129,12 +129,20 @@ int main(int argc, char** argv) {
       if (s == "exact") params.solver = SolverKind::Exact;
       else if (s == "pgs") params.solver = SolverKind::Pgs;
       else fail("--solver must be exact or pgs, got '" + s + "'");
-    } else if (a == "--pgs-sweeps") params.pgs.sweeps = static_cast<int>(numberArg("--pgs-sweeps", value()));
+    } else if (a == "--pgs-sweeps") {
+      const double n = numberArg("--pgs-sweeps", value());
+      if (!(n >= 1 && n <= 100000) || n != std::floor(n)) fail("--pgs-sweeps must be a whole number in [1, 100000]");
+      params.pgs.sweeps = static_cast<int>(n);
+    }
     else if (a == "--dt") params.dt = numberArg("--dt", value());
-    else if (a == "--frames-per-phase") frames = static_cast<int>(numberArg("--frames-per-phase", value()));
+    else if (a == "--frames-per-phase") {
+      const double n = numberArg("--frames-per-phase", value());
+      frames = n >= 1 && n <= 1000000 && n == std::floor(n) ? static_cast<int>(n) : 0;  // 0: refused below
+    }
     else fail("unknown argument '" + a + "' (see --help)");
   }
   if (frames < 1 || frames > 1000000) fail("--frames-per-phase must be in [1, 1000000]");
+  if (!(params.dt >= 1e-6 && params.dt <= 1.0)) fail("--dt must be in [1e-6, 1] s");
 
   HandModel model;
   try {

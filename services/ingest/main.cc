@@ -13,6 +13,7 @@
 #include "leap/retarget.h"
 #include "leap/tool_target.h"
 #include "model/hand_model.h"
+#include "runtime/lab_checks.h"
 #include "runtime/convert.h"
 #include "runtime/service.h"
 #include "source/live.h"
@@ -76,17 +77,10 @@ int main(int argc, char** argv) {
   // The lab's tracker calibration, where the command line left a field at its default.
   if (lab.tracker.any()) {
     bridges::CalibrationText from_lab;
-    from_lab.pose = lab.tracker.pose;
-    from_lab.units = lab.tracker.units;
-    from_lab.up = lab.tracker.up;
-    from_lab.hand_map = lab.tracker.hand_map;
-    from_lab.palm_offset = lab.tracker.palm_offset;
-    from_lab.volume_m = lab.tracker.volume_m;
-    from_lab.max_speed = lab.tracker.max_speed;
     try {
-      bridges::sourceOptions(from_lab);
+      from_lab = svc::labCalibration(lab);
     } catch (const std::exception& e) {
-      cli.fail(lab.file + ": tracker: " + e.what());
+      cli.fail(e.what());
     }
     if (calib.pose.empty()) calib.pose = from_lab.pose;
     if (calib.units.empty()) calib.units = from_lab.units;
@@ -112,20 +106,7 @@ int main(int argc, char** argv) {
     }
     for (size_t c = 0; c < lab.clusters.size(); ++c) {
       models[c] = loadHandModel(lab.clusters[c].model);
-      const bool tool_cluster = lab.clusters[c].tracker_body >= 0;
-      if (tool_cluster != leap::isToolModel(models[c]))
-        cli.fail("cluster '" + lab.clusters[c].name + "': model " + lab.clusters[c].model +
-                 (tool_cluster ? " is not a tool model (every body's tracker_segment \"tool\"), but the cluster gives tracker_body"
-                               : " is a tool model (tracker_segment \"tool\"): give the cluster tracker_body N, not a side"));
-      if (tool_cluster) {
-        retarget.push_back(nullptr);  // driven by its tracked body (leap::toolTargets)
-        continue;
-      }
-      retarget.push_back(std::make_unique<leap::Retargeter>(models[c]));
-      const auto right = retarget.back()->modelIsRight();
-      if (right && *right != (lab.clusters[c].side == "right"))
-        cli.fail("cluster '" + lab.clusters[c].name + "': model " + lab.clusters[c].model + " is a " +
-                 (*right ? "right" : "left") + " hand but the cluster's side is " + lab.clusters[c].side);
+      retarget.push_back(svc::clusterRetargeter(lab.clusters[c], models[c]));  // nullptr: a tool cluster
     }
   } catch (const std::exception& e) {
     cli.fail(e.what());

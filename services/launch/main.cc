@@ -46,6 +46,7 @@
 #include "pipeline/run_metrics.h"
 #include "pipeline/run_metrics_json.h"
 #include "model/hand_model.h"
+#include "runtime/lab_checks.h"
 #include "runtime/convert.h"
 #include "scene/scene_file.h"
 #include "source/tracker_source.h"
@@ -341,9 +342,11 @@ int main(int argc, char** argv) {
     std::vector<std::string> names;
     for (size_t c = 0; c < C; ++c) {
       models[c] = loadHandModel(lab.clusters[c].model);
+      svc::clusterRetargeter(lab.clusters[c], models[c]);  // the ingest's checks, before anything starts
       mp.push_back(&models[c]);
       names.push_back(lab.clusters[c].name);
     }
+    svc::labCalibration(lab);
     PipelineParams mparams;
     mparams.step.dt = 1.0 / (lockstep ? rate : rate * speed);
     mparams.step.solver = solver == "pgs" ? SolverKind::Pgs : SolverKind::Exact;
@@ -521,7 +524,7 @@ int main(int argc, char** argv) {
   };
   try {
     for (const ChildSpec& c : specs)
-      if (c.name != "ingest") sup.start(c);
+      if (c.name != "ingest" && !stopRequested()) sup.start(c);  // a stop request ends the start-up here
     // The ingest last, once every other service runs and this monitor is matched with the
     // resolver's HandState and the scene's SceneState writers: a monitor that matched late would
     // miss the first frames (a lock-step run of a short recording is over in a second or two).
@@ -559,6 +562,30 @@ int main(int argc, char** argv) {
     }
     for (const ChildSpec& c : specs)
       if (c.name == "ingest") sup.start(c);
+    if (!specOf("ingest")) {
+      // The ingest runs on another host (or is started by hand): its heartbeat must come within
+      // the start-up time, or the run would wait for frames that never come (a mistyped host).
+      const LabService* ing = lab.service("ingest");
+      const Clock::time_point ingest_until =
+          Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(start_timeout));
+      while (!status.count("ingest") && !stopRequested() && Clock::now() < ingest_until) {
+        dp->waitForData(Clock::now() + std::chrono::milliseconds(50));
+        takeStatus();
+      }
+      if (!status.count("ingest")) {
+        sup.stop(std::chrono::milliseconds(3000));
+        if (!stopRequested())
+          std::fprintf(stderr, "godhand-launch: start-up failed: the ingest (on %s, not started here) was not heard from in %s s "
+                               "(is it running there, and is %s this lab's name for that machine? this machine is %s)\n",
+                       ing ? ing->host.c_str() : "?", fmt17(start_timeout).c_str(), ing ? ing->host.c_str() : "?", host_name.empty() ? this_host : host_name.c_str());
+        hs_in.reset();
+        ss_in.reset();
+        ht_in.reset();
+        st_in.reset();
+        dp.reset();
+        return stopRequested() ? 0 : kExitStartup;
+      }
+    }
     noteAllShm();
   } catch (const std::exception& e) {
     sup.stop(std::chrono::milliseconds(3000));

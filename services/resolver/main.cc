@@ -70,7 +70,7 @@ int main(int argc, char** argv) {
     if (models[c].bodies.size() > 32) cli.fail(lab.clusters[c].model + ": " + std::to_string(models[c].bodies.size()) + " bodies; the wire carries at most 32 per hand");
     god_bodies += models[c].bodies.size();
   }
-  if (C > 16) cli.fail(lab.file + ": " + std::to_string(C) + " clusters; at most 16");
+  if (C > static_cast<size_t>(kMaxLabClusters)) cli.fail(lab.file + ": " + std::to_string(C) + " clusters; at most " + std::to_string(kMaxLabClusters));
   if (god_bodies > 96) cli.fail(lab.file + ": " + std::to_string(god_bodies) + " God objects over all clusters; ContactForces carries at most 96");
 
   service.connect();

@@ -144,6 +144,17 @@ TEST(Retarget, ConstructorChecksSegmentNames) {
   }
 }
 
+TEST(Retarget, AModelNothingDrivesIsRefused) {
+  std::string text = readText(modelPath("hand16_right.pbtxt"));
+  for (size_t at; (at = text.find("tracker_segment:")) != std::string::npos;) text.erase(at, text.find('\n', at) - at);
+  try {
+    Retargeter r(HandModel::fromText(text, "undriven"));
+    ADD_FAILURE() << "a model without tracker segments accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("no body has a tracker_segment"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Retarget, UndrivenBodyHasNoTarget) {
   std::string text = readText(modelPath("hand16_right.pbtxt"));
   const std::string from = "tracker_segment: \"pinky.3\"";

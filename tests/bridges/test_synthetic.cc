@@ -9,6 +9,8 @@
 #include <gtest/gtest.h>
 #include <sstream>
 
+#include <nlohmann/json.hpp>
+
 #include "common/files.h"
 #include "leap/retarget.h"
 #include "model/hand_model.h"
@@ -43,6 +45,7 @@ TEST(Synthetic, ParseErrorsNameTheLine) {
       {"godhand-synthetic 1\nstart right 0 0 0\nmove right 1 0 0 0 ; curl right 1 1\n", ":3: one motion per hand"},
       {"godhand-synthetic 1\nstart right 0 0 0\nmove right 1 0 0 0 ;\n", ":3: empty motion"},
       {"godhand-synthetic 1\nstart right 0 0 0\nmove right 1 0 0 0 ; move left 1 0 0 0\n", ":3: 'move' of the left hand before"},
+      {"godhand-synthetic 1\nrate 10000\nstart right 0 0 0\nhold 30\nhold 3600\n", ":5: the script makes more than 360000 frames"},
   };
   for (const auto& b : bad) {
     try {
@@ -152,6 +155,34 @@ TEST(Synthetic, GlitchesBeyondTheVolumeOrTheSpeedLimitAreDropped) {
   EXPECT_EQ(loose.rejections.find("speed limit"), std::string::npos) << loose.rejections;
   o.max_abs_position_m = 0.1;
   EXPECT_THROW(bridges::loadRecording(dataPath("glitches.txt"), o), bridges::SourceError);  // no tracked hands
+}
+
+// A jump in a frame whose timestamp equals the last one's is judged as if 1 ms had passed: five
+// 0.4 m teleports of pinch's hand are dropped whether their frames carry their own timestamps or
+// repeat the previous frame's (found by review: the repeated ones were let through, no time having
+// passed to judge them by). Frames that repeat a timestamp without a jump are kept.
+TEST(Synthetic, AJumpIsDroppedWhenItsFrameRepeatsTheLastTimestamp) {
+  const std::string pinch = std::string(GODHAND_DEPLOY_DIR) + "/recordings/pinch.json";
+  for (const bool repeat : {false, true}) {
+    nlohmann::json d = nlohmann::json::parse(std::ifstream(pinch));
+    auto& F = d["frames"];
+    for (int i = 150; i < 160; i += 2) {
+      auto shift = [](nlohmann::json& v) { v[0] = v[0].get<double>() + 400.0; };
+      for (auto& h : F[i]["hands"])
+        for (const char* k : {"palmPosition", "stabilizedPalmPosition", "sphereCenter"})
+          if (h.contains(k)) shift(h[k]);
+      for (auto& p : F[i]["pointables"])
+        for (const char* k : {"tipPosition", "dipPosition", "pipPosition", "mcpPosition", "stabilizedTipPosition", "btipPosition", "carpPosition"})
+          if (p.contains(k)) shift(p[k]);
+      if (repeat) F[i]["timestamp"] = F[i - 1]["timestamp"];
+    }
+    F[100]["timestamp"] = F[99]["timestamp"];  // a repeat without a jump
+    const std::string path = ::testing::TempDir() + (repeat ? "/repeat.json" : "/teleport.json");
+    std::ofstream(path) << d.dump();
+    const bridges::LoadedRecording r = bridges::loadRecording(path);
+    EXPECT_NE(r.rejections.find("hand jumps beyond the speed limit 5"), std::string::npos) << repeat << ": " << r.rejections;
+    std::remove(path.c_str());
+  }
 }
 
 // Grasp a box between two hands (issue 11): `roll` turns the hands palm to palm, ';' moves them

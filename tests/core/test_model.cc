@@ -346,6 +346,22 @@ TEST(ModelErrors, NegativeMass) {
   expectError(text2, second_body, "bodies[1].mass", "mass");
 }
 
+TEST(ModelErrors, TooManyBodiesAndUnknownRotationWeight) {
+  // 33 bodies: refused at once (a hand's samples carry at most 32 poses; 3,000 bodies once ran the
+  // machine out of memory before any message).
+  std::string many;
+  for (int i = 0; i < 33; ++i)
+    many += "bodies { name: \"b" + std::to_string(i) + "\" sphere { radius: 0.01 } mass: 0.01 }\n";
+  const std::string msg = errorOf(many);
+  EXPECT_NE(msg.find("33 bodies; a model has at most 32"), std::string::npos) << msg;
+  std::string ok;
+  for (int i = 0; i < 32; ++i) ok += "bodies { name: \"b" + std::to_string(i) + "\" sphere { radius: 0.01 } mass: 0.01 }\n";
+  EXPECT_EQ(errorOf(ok), "");
+  // proto3 text takes an unknown enum number; the model does not.
+  const std::string weight = errorOf("rotation_weight: 7\n" + std::string(kGood));
+  EXPECT_NE(weight.find("rotation_weight: unknown value 7"), std::string::npos) << weight;
+}
+
 TEST(ModelErrors, DuplicateBodyName) {
   const std::string text = replaced(kGood, "  name: \"b\"\n", "  name: \"a\"\n");
   const int second = lineOf(text, "name: \"a\"", text.find("name: \"a\"") + 1);

@@ -324,10 +324,10 @@ TEST(LabConfig, UnknownNumericKindRejected) {
 }
 
 TEST(LabConfig, DeadlinesMustBeFinitePositive) {
-  for (const char* bad : {"-0.5", "nan", "inf", "-inf"}) {
-    expectError(lab(std::string("deadline_s: ") + bad + "\n", kOneCluster, kServices), 2, "deadline_s", "finite number of seconds > 0");
+  for (const char* bad : {"-0.5", "nan", "inf", "-inf", "3600.5", "1e300"}) {
+    expectError(lab(std::string("deadline_s: ") + bad + "\n", kOneCluster, kServices), 2, "deadline_s", "seconds in (0, 3600]");
     expectError(lab(std::string("stale_after_s: ") + bad + "\n", kOneCluster, kServices), 2, "stale_after_s",
-                "finite number of seconds > 0");
+                "seconds in (0, 3600]");
   }
   const LabConfig zero = parseLab(lab("deadline_s: 0\nstale_after_s: 0\n", kOneCluster, kServices), "inline.pbtxt", kLabDir);
   EXPECT_DOUBLE_EQ(zero.deadline_s, 10.0);
@@ -372,6 +372,31 @@ TEST(LabConfig, HostsAndArgs) {
   EXPECT_TRUE(isLocalHost("127.0.0.1"));
   EXPECT_TRUE(isLocalHost(host));
   EXPECT_FALSE(isLocalHost("tracker-pc.invalid"));
+}
+
+TEST(LabConfig, AtMostSixteenClustersAndArgsDoNotOverrideTheLaunchersOptions) {
+  // 17 clusters: refused at load, before anything starts (the resolver merges at most 16).
+  std::string clusters, solvers;
+  for (int i = 0; i < 17; ++i) {
+    clusters += "clusters { name: \"c" + std::to_string(i) + "\" model: \"../models/hand16_right.pbtxt\" side: \"right\" }\n";
+    solvers += "services { kind: SOLVER cluster: \"c" + std::to_string(i) + "\" }\n";
+  }
+  const std::string base = "services { kind: INGEST }\nservices { kind: SCENE }\nservices { kind: RESOLVER }\n";
+  const std::string many = parseError(lab("", clusters, base + solvers));
+  EXPECT_NE(many.find("17 clusters; a lab has at most 16"), std::string::npos) << many;
+  // 16 load.
+  const size_t cut = clusters.rfind("clusters {"), cut_s = solvers.rfind("services {");
+  EXPECT_NO_THROW(parseLab(lab("", clusters.substr(0, cut), base + solvers.substr(0, cut_s)), "inline.pbtxt", kLabDir));
+  // A service's args may not set what godhand-launch sets from the lab (a second --domain took a
+  // scene into another domain, where the launcher waited for it in vain).
+  for (const char* opt : {"--domain", "--lab", "--profiles", "--lockstep", "--scene=x.pbtxt", "--frame-rate"}) {
+    const std::string msg = parseError(
+        lab("", kOneCluster,
+            "services { kind: INGEST }\nservices { kind: SCENE args: \"" + std::string(opt) +
+                "\" args: \"7\" }\nservices { kind: RESOLVER }\nservices { kind: SOLVER cluster: \"solo\" }\n"));
+    EXPECT_NE(msg.find("services[1].args"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("args may not set"), std::string::npos) << msg;
+  }
 }
 
 TEST(LabConfig, ServiceNames) {

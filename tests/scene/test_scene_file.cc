@@ -200,7 +200,13 @@ TEST(SceneFile, ErrorsNameFileLineAndField) {
   expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  scale: 0\n}\n", "4: objects[0].scale: ", "scale must lie");
   expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  subdivide: 9\n}\n", "4: objects[0].subdivide: ", "limit");
   expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  god { fidelity: DECIMATED }\n}\n",
-              "4: objects[0].god: ", "target_triangles >= 4");
+              "4: objects[0].god: ", "target_triangles in [4, 100000000]");
+  expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  god { fidelity: DECIMATED target_triangles: 4000000000 }\n}\n",
+              "4: objects[0].god: ", "got 4000000000");
+  expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  god { fidelity: 42 }\n}\n", "4: objects[0].god: ",
+              "unknown fidelity 42");
+  expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  physics { fidelity: 9 }\n}\n", "4: objects[0].physics: ",
+              "unknown fidelity 9");
   expectError(tmp, "objects {\n  id: \"b\"\n  mesh: \"cube.obj\"\n  physics { fidelity: PRIMITIVE }\n}\n",
               "4: objects[0].physics: ", "centre: true");
   expectError(tmp, "objects {\n  id: \"b\"\n  box { half_extents { x: 1 y: 1 z: 1 } }\n  restitution: 2\n}\n",
@@ -211,6 +217,7 @@ TEST(SceneFile, ErrorsNameFileLineAndField) {
   expectError(tmp, "objects {\n  box { half_extents { x: 1 y: 1 z: 1 } }\n}\n", "1: objects[0].id: ", "needs an id");
   expectError(tmp, "name: \"x\"\n", "1: objects: ", "at least one object");
   expectError(tmp, "gravity { z: nan }\n" + ok, "1: gravity: ", "finite");
+  expectError(tmp, "gravity { z: -1e300 }\n" + ok, "1: gravity: ", "at most 1000");
   expectError(tmp, ok + "objects {\n  id: \"x\"\n  mas: 1\n}\n", "4:", "no field named \"mas\"");  // protobuf syntax error: line:column
   tmp.write("nan.obj", "v 0 0 0\nv 0 nan 0\nv 0 0 1\nf 1 2 3\n");
   expectError(tmp, "objects {\n  id: \"n\"\n  mesh: \"nan.obj\"\n}\n",
