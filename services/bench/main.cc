@@ -198,7 +198,7 @@ double parseDouble(const std::string& flag, const std::string& v, double lo, dou
   char* end = nullptr;
   errno = 0;
   const double x = std::strtod(v.c_str(), &end);
-  if (v.empty() || *end != '\0' || errno != 0 || !(x >= lo && x <= hi))
+  if (v.empty() || *end != '\0' || errno != 0 || !(x >= lo && x <= hi) || v.find_first_of("xX") != std::string::npos)
     fail(flag + ": expected a number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got '" + v + "'");
   return x;
 }
@@ -444,6 +444,9 @@ int main(int argc, char** argv) {
          "deploy/run.sh compare does both)");
 #endif
 
+  for (const std::string* out : {&args.json, &args.poses})  // before the run, not after it
+    if (!out->empty())
+      if (const std::string why = unwritableReason(*out); !why.empty()) fail(*out + ": cannot write: " + why);
   std::ofstream poses_out;
   if (!args.poses.empty()) {
     poses_out.open(args.poses);

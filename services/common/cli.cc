@@ -96,7 +96,9 @@ void Cli::option(const std::string& name, double* value, const std::string& meta
     char* end = nullptr;
     errno = 0;
     const double x = std::strtod(v.c_str(), &end);
-    if (v.empty() || startsWithSpace(v) || *end != '\0') return flag + ": expected a number, got '" + v + "'";
+    // (strtod also reads hexadecimal, "0x10" = 16: not what a person typing a number means.)
+    if (v.empty() || startsWithSpace(v) || *end != '\0' || v.find_first_of("xX") != std::string::npos)
+      return flag + ": expected a number, got '" + v + "'";
     if (!std::isfinite(x) || (errno == ERANGE && std::fabs(x) > 1.0)) return flag + ": expected a finite number, got '" + v + "'";
     *value = x;
     return "";

@@ -7,6 +7,8 @@
 #include <iterator>
 #include <sstream>
 
+#include <unistd.h>
+
 namespace godhand {
 
 namespace {
@@ -50,6 +52,19 @@ Scene loadScene(const std::string& path, const GodFidelity* god) {
   std::ostringstream ss;
   ss << in.rdbuf();
   return parseScene(ss.str(), path, fs::path(path).parent_path().string(), meshFileLoader(), god);
+}
+
+std::string unwritableReason(const std::string& path) {
+  if (path.empty()) return "empty file name";
+  std::error_code ec;
+  const fs::path p(path);
+  if (fs::exists(p, ec)) {
+    if (fs::is_directory(p, ec)) return "it is a directory";
+    return ::access(path.c_str(), W_OK) == 0 ? "" : std::strerror(errno);
+  }
+  const fs::path dir = p.has_parent_path() ? p.parent_path() : fs::path(".");
+  if (!fs::is_directory(dir, ec)) return "no directory " + dir.string();
+  return ::access(dir.c_str(), W_OK) == 0 ? "" : "directory " + dir.string() + ": " + std::strerror(errno);
 }
 
 }  // namespace godhand

@@ -31,4 +31,9 @@ MeshLoader meshFileLoader();
 /// object's God side instead of the file's (parseScene's god_override).
 Scene loadScene(const std::string& path, const GodFidelity* god = nullptr);
 
+/// Why an output file could not be written, checked before a run (its directory exists and is
+/// writable, the file itself, if it exists, is a writable regular file or a device); "" when it
+/// can. Nothing is created: a run that fails leaves no empty file behind.
+std::string unwritableReason(const std::string& path);
+
 }  // namespace godhand

@@ -106,7 +106,7 @@ struct Phase { const char* name; Vec3 from, to; double curl_from, curl_to; };
 double numberArg(const char* flag, const char* v) {
   char* end = nullptr;
   const double x = std::strtod(v, &end);
-  if (!end || *end || !std::isfinite(x)) fail(std::string(flag) + ": not a number: '" + v + "'");
+  if (!end || *end || !std::isfinite(x) || std::strpbrk(v, "xX")) fail(std::string(flag) + ": not a number: '" + v + "'");
   return x;
 }
 

@@ -274,6 +274,8 @@ int main(int argc, char** argv) {
   if (physics_hz < 10 || physics_hz > 100000) cli.fail("--physics-hz must be in [10, 100000]");
   if (domain < -1 || domain > 232) cli.fail("--domain must be in 0..232");
   if (!source_uri.empty() && !recording.empty()) cli.fail("--source and --recording: give one");
+  if (!json_out.empty())  // before the run, not after it
+    if (const std::string why = unwritableReason(json_out); !why.empty()) cli.fail("--json " + json_out + ": cannot write: " + why);
   if (!partition.empty() && (partition.size() > 64 || partition.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_.-") != std::string::npos))
     cli.fail("--partition must be 1 to 64 characters of [A-Za-z0-9_.-]");
   std::vector<Drill> drills;

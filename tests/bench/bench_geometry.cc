@@ -258,9 +258,9 @@ void perCallFigures() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  perCallFigures();
-  benchmark::Initialize(&argc, argv);
+  benchmark::Initialize(&argc, argv);  // (--help: prints and exits, before any figure is measured)
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  perCallFigures();
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;

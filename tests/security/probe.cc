@@ -40,6 +40,11 @@ int main(int argc, char** argv) {
   if (domain < 0 || domain > 232) cli.fail("--domain must be in 0..232");
   if (!(seconds > 0 && seconds <= 3600)) cli.fail("--seconds must be in (0, 3600]");
   if (hand < 0 || hand > 1000) cli.fail("--hand must be in 0..1000");
+  if (!profiles.empty()) {  // (a refused participant is a result; a missing file is a bad argument)
+    std::FILE* f = std::fopen(profiles.c_str(), "rb");
+    if (!f) cli.fail("--profiles " + profiles + ": cannot read");
+    std::fclose(f);
+  }
   installStopHandlers();
   std::unique_ptr<dds::Participant> p;
   try {
