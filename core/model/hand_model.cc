@@ -14,6 +14,14 @@ namespace godhand {
 
 namespace {
 
+/// A number as a person reads it (1e+300, 1e-300, 0.05), not std::to_string's fixed six decimals.
+std::string shortest(double x) {
+  std::ostringstream os;
+  os.precision(6);
+  os << x;
+  return os.str();
+}
+
 constexpr double kPi = 3.14159265358979323846;
 using google::protobuf::FieldDescriptor;
 using google::protobuf::Message;
@@ -227,7 +235,7 @@ HandModel HandModel::fromText(const std::string& text, const std::string& source
         throw ModelError(where("") + "body '" + b.name + "' has no shape (capsule, sphere or box)");
     }
     b.mass = pbb.mass();
-    if (!(b.mass > 0 && finite(b.mass))) throw ModelError(where("mass") + "mass must be > 0 (kg), got " + std::to_string(b.mass));
+    if (!(b.mass > 0 && finite(b.mass))) throw ModelError(where("mass") + "mass must be > 0 (kg), got " + shortest(b.mass));
     // Sizes from 1 µm to 100 m and masses from 1 µg to 1000 t keep every derived quantity (inertia,
     // its inverse, Δt² terms) far from overflow and underflow.
     const double size = b.shape.type == ShapeType::Box ? b.shape.half_extents.maxCoeff()
@@ -236,7 +244,7 @@ HandModel HandModel::fromText(const std::string& text, const std::string& source
     if (!(small >= 1e-6 && size <= 100.0))
       throw ModelError(where(b.shape.type == ShapeType::Box ? "box" : b.shape.type == ShapeType::Sphere ? "sphere" : "capsule") +
                        "shape dimensions must lie in [1e-6, 100] m");
-    if (!(b.mass >= 1e-9 && b.mass <= 1e6)) throw ModelError(where("mass") + "mass must lie in [1e-9, 1e6] kg, got " + std::to_string(b.mass));
+    if (!(b.mass >= 1e-9 && b.mass <= 1e6)) throw ModelError(where("mass") + "mass must lie in [1e-9, 1e6] kg, got " + shortest(b.mass));
     b.inertia = inertiaDiagonal(b.shape, b.mass);
     b.turn_inertia = msg.rotation_weight() == pb::SOLID ? b.inertia : farthestPointInertia(b.shape, b.mass);
     if (!b.inertia.allFinite() || !(b.inertia.minCoeff() > 0.0) || !b.turn_inertia.allFinite() ||

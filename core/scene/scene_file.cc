@@ -2,6 +2,7 @@
 
 #include <google/protobuf/text_format.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -514,7 +515,10 @@ MeshSpec parseMeshSpec(const std::string& whole) {
       if (comma == std::string::npos) break;
       pos = comma + 1;
     }
-    const bool numbers_only = tail.find_first_not_of("0123456789+-.,eE") == std::string::npos;
+    // A tail of three comma-separated words is a position (nan and inf included, to be refused
+    // as such rather than taken for part of the file name).
+    const bool numbers_only = (tail.find_first_not_of("0123456789+-.,eE") == std::string::npos ||
+                               (std::count(tail.begin(), tail.end(), ',') == 2 && tail.find('/') == std::string::npos));
     if (numbers_only && !tail.empty()) {
       if (v.size() != 3 || !Vec3(v[0], v[1], v[2]).allFinite() || Vec3(v[0], v[1], v[2]).cwiseAbs().maxCoeff() > 1e6)
         throw SceneError("--mesh " + whole + ": position '" + tail + "' must be three finite numbers of metres (FILE[:SIZE_M]@X,Y,Z)");

@@ -340,6 +340,11 @@ TEST(ModelErrors, BadShapeDimensions) {
 TEST(ModelErrors, NegativeMass) {
   const std::string text = replaced(kGood, "  mass: 0.05\n", "  mass: -0.05\n");
   expectError(text, lineOf(text, "mass: -0.05"), "bodies[1].mass", "mass");
+  // The value as it was written, not as 180 digits or "0.000000".
+  const std::string huge = replaced(kGood, "  mass: 0.05\n", "  mass: 1e300\n");
+  expectError(huge, lineOf(huge, "mass: 1e300"), "bodies[1].mass", "got 1e+300");
+  const std::string tiny = replaced(kGood, "  mass: 0.05\n", "  mass: 1e-300\n");
+  expectError(tiny, lineOf(tiny, "mass: 1e-300"), "bodies[1].mass", "got 1e-300");
   // A missing mass (proto3 default 0) is reported at the body.
   const std::string text2 = replaced(kGood, "  mass: 0.05\n", "");
   const int second_body = lineOf(text2, "bodies {", text2.find("bodies {") + 1);

@@ -557,6 +557,16 @@ TEST(MeshScene, ParseMeshSpec) {
       EXPECT_EQ(std::string(e.what()).find('\n'), std::string::npos);
     }
   }
+  // A position that is not finite is refused as a position (was taken for part of the file name:
+  // "cannot open mesh file").
+  for (const char* bad : {"a.obj@nan,0,0", "a.obj:0.2@0,inf,0", "a.obj@0,0,-inf"}) {
+    try {
+      parseMeshSpec(bad);
+      ADD_FAILURE() << bad << " accepted";
+    } catch (const SceneError& e) {
+      EXPECT_NE(std::string(e.what()).find("must be three finite numbers"), std::string::npos) << e.what();
+    }
+  }
 }
 
 }  // namespace
