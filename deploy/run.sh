@@ -46,7 +46,8 @@ case $mode in
     status=0
     rec=deploy/recordings/confidence2-49fps.json
     tmp=$(mktemp -d)
-    # The browser viewer, on the lab's DDS domain: open the printed URL.
+    # The browser viewer, on the lab's DDS domain: open the printed URL (while the demo runs; in a
+    # terminal the demo then replays the recording until Ctrl-C).
     build/bin/godhand-viewer --quiet >"$tmp/viewer.out" 2>"$tmp/viewer.err" &
     viewer_pid=$!
     loop_pid=""
@@ -59,11 +60,13 @@ case $mode in
     trap 'exit 130' INT TERM
     for _ in $(seq 200); do grep -q '^viewer: ' "$tmp/viewer.out" 2>/dev/null && break; kill -0 "$viewer_pid" 2>/dev/null || break; sleep 0.1; done
     url=$(grep -m1 '^viewer: ' "$tmp/viewer.out" || true)
-    if [[ -n $url ]]; then echo "$url"; else cat "$tmp/viewer.err" >&2; echo "run.sh: godhand-viewer did not start" >&2; status=1; fi
+    if [[ -n $url ]]; then echo "$url  (open it in a browser: the hands move there while the demo runs)"; else cat "$tmp/viewer.err" >&2; echo "run.sh: godhand-viewer did not start" >&2; status=1; fi
     echo "== godhand-launch: every service over Fast DDS (loopback only), live, $rec on deploy/scenes/default.pbtxt =="
     build/bin/godhand-launch --recording "$rec" --check "$@" || status=1
     echo "== the same recording in lock-step, against the in-process run (godhand-bench) =="
-    build/bin/godhand-bench --recording "$rec" --quiet --json "$tmp/bench.json" | grep -E "step:|result hash" || status=1
+    echo "godhand-bench (in process):"
+    build/bin/godhand-bench --recording "$rec" --quiet --json "$tmp/bench.json" | grep -E "^  step \\(|result hash" || status=1
+    echo "godhand-launch --lockstep (every service over Fast DDS):"
     build/bin/godhand-launch --recording "$rec" --lockstep --quiet --json "$tmp/launch.json" | grep -E "lock-step run|latency|result hash" || status=1
     python3 - "$tmp/bench.json" "$tmp/launch.json" <<'PY' || status=1
 import json, sys

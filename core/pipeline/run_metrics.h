@@ -196,30 +196,42 @@ inline bool plausible(const RunSummary& s, std::string* why) {
   return true;
 }
 
-/// One line per hand for a summary (the same words in every report).
+/// One line per hand for a summary (the same words in every report). A figure over no frames is
+/// said to be so, never printed as zeros (which read as a perfect result).
 inline std::string describe(const HandSummary& h) {
-  char buf[1400];
-  std::snprintf(buf, sizeof buf,
-                "%s hand: excess lag (distance to the free twin beyond what the scene forces) median %.2f p95 %.2f max "
-                "%.2f mm, %llu of %zu frames above 5 mm (%llu frames with the twin inside an object, where the figure is "
-                "an upper bound; in the other %zu, the twin outside: median %.2f p95 %.2f max %.2f mm, %llu above 5 mm); frozen %llu of %llu moving windows; stuck %llu frames; model "
-                "error (twin to targets: what the hand model cannot follow) median %.2f max %.2f mm; free tracking error "
-                "(no contact loaded) median %.2f max %.2f mm; gap to the full surface while touching median %.3f p95 %.3f "
-                "max %.3f mm (%zu body-frames); jitter (a body's motion turning back from one frame to the next) %llu of "
-                "%llu body-frames, free twin %llu; clipped %llu frames (TOC < 1e-3 in %llu), rounds %llu",
-                h.name.c_str(), h.excess_lag_m.median * 1e3, h.excess_lag_m.p95 * 1e3, h.excess_lag_m.max * 1e3,
-                static_cast<unsigned long long>(h.lag_above_5mm), h.excess_lag_m.count,
-                static_cast<unsigned long long>(h.twinInsideFrames()), h.excess_lag_twin_outside_m.count,
-                h.excess_lag_twin_outside_m.median * 1e3, h.excess_lag_twin_outside_m.p95 * 1e3,
-                h.excess_lag_twin_outside_m.max * 1e3, static_cast<unsigned long long>(h.lag_above_5mm_twin_outside),
-                static_cast<unsigned long long>(h.frozen_windows), static_cast<unsigned long long>(h.moving_windows),
-                static_cast<unsigned long long>(h.stuck_frames), h.model_error_m.median * 1e3, h.model_error_m.max * 1e3,
-                h.free_tracking_error_m.median * 1e3, h.free_tracking_error_m.max * 1e3, h.contact_gap_m.median * 1e3,
-                h.contact_gap_m.p95 * 1e3, h.contact_gap_m.max * 1e3, h.contact_gap_m.count,
-                static_cast<unsigned long long>(h.jitter_body_frames), static_cast<unsigned long long>(h.jitter_checked),
-                static_cast<unsigned long long>(h.twin_jitter_body_frames), static_cast<unsigned long long>(h.clipped_frames), static_cast<unsigned long long>(h.toc_below_1e3),
-                static_cast<unsigned long long>(h.substeps));
-  return buf;
+  auto mm = [](double m) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%.2f", m * 1e3);
+    return std::string(b);
+  };
+  auto u = [](std::uint64_t n) { return std::to_string(n); };
+  std::string o = h.name + " hand: excess lag (distance to the free twin beyond what the scene forces) ";
+  o += h.excess_lag_m.count == 0
+           ? std::string("not measured (no tracked frame)")
+           : "median " + mm(h.excess_lag_m.median) + " p95 " + mm(h.excess_lag_m.p95) + " max " + mm(h.excess_lag_m.max) +
+                 " mm, " + u(h.lag_above_5mm) + " of " + std::to_string(h.excess_lag_m.count) + " frames above 5 mm (" +
+                 u(h.twinInsideFrames()) + " frames with the twin inside an object, where the figure is an upper bound" +
+                 (h.excess_lag_twin_outside_m.count == 0
+                      ? std::string("; the twin was inside in every one)")
+                      : "; in the other " + std::to_string(h.excess_lag_twin_outside_m.count) + ", the twin outside: median " +
+                            mm(h.excess_lag_twin_outside_m.median) + " p95 " + mm(h.excess_lag_twin_outside_m.p95) + " max " +
+                            mm(h.excess_lag_twin_outside_m.max) + " mm, " + u(h.lag_above_5mm_twin_outside) + " above 5 mm)");
+  o += "; frozen " + u(h.frozen_windows) + " of " + u(h.moving_windows) + " moving windows; stuck " + u(h.stuck_frames) + " frames";
+  o += "; model error (twin to targets: what the hand model cannot follow) " +
+       (h.model_error_m.count == 0 ? std::string("not measured")
+                                   : "median " + mm(h.model_error_m.median) + " max " + mm(h.model_error_m.max) + " mm");
+  o += "; free tracking error (no contact loaded) " +
+       (h.free_tracking_error_m.count == 0
+            ? std::string("not measured (a contact was loaded in every tracked frame)")
+            : "median " + mm(h.free_tracking_error_m.median) + " max " + mm(h.free_tracking_error_m.max) + " mm");
+  char gap[160];
+  std::snprintf(gap, sizeof gap, "median %.3f p95 %.3f max %.3f mm (%zu body-frames)", h.contact_gap_m.median * 1e3,
+                h.contact_gap_m.p95 * 1e3, h.contact_gap_m.max * 1e3, h.contact_gap_m.count);
+  o += "; gap to the full surface while touching " + (h.contact_gap_m.count == 0 ? std::string("none (never touching)") : std::string(gap));
+  o += "; jitter (a body's motion turning back from one frame to the next) " + u(h.jitter_body_frames) + " of " +
+       u(h.jitter_checked) + " body-frames, free twin " + u(h.twin_jitter_body_frames);
+  o += "; clipped frames " + u(h.clipped_frames) + " (TOC < 1e-3 in " + u(h.toc_below_1e3) + "), solve -> sweep rounds " + u(h.substeps);
+  return o;
 }
 
 }  // namespace godhand

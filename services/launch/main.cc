@@ -458,7 +458,8 @@ int main(int argc, char** argv) {
   std::printf("launch: lab '%s' (%s), domain %u, %s mode, %zu cluster(s), source %s (%s at %.2f Hz), scene '%s'\n",
               lab.name.c_str(), lab.file.c_str(), lab.domain_id, lockstep ? "lock-step" : "live", C, lab.recording.c_str(),
               n_frames >= 0 ? (std::to_string(n_frames) + " frames").c_str() : "live", rate, scene.name.c_str());
-  std::printf("launch: service logs in %s\n", log_dir.c_str());
+  std::printf("launch: service logs in %s%s\n", log_dir.c_str(),
+              own_log_dir ? " (removed after a clean run; --log-dir DIR keeps them)" : "");
   std::fflush(stdout);
   std::map<std::string, msg::ServiceStatus> status;
   SourceTally source_tally;  // the ingest's source counts, per ingest run (summed in the report)
@@ -1062,15 +1063,15 @@ int main(int argc, char** argv) {
                         hl == Watchdog::Health::Unknown ? "starting" : s.second.state().c_str());
         rates += b;
       }
-      char pen_text[48], lat_text[96];
+      char pen_text[48], lat_text[128];
       std::snprintf(pen_text, sizeof pen_text, "%.4f mm", window_pen * 1e3);
       // No fresh HandState this second: no latency to show (a 0 would read as instant).
       if (window_latency.empty())
         std::snprintf(lat_text, sizeof lat_text, "latency - (no fresh hand state this second)");
       else
-        std::snprintf(lat_text, sizeof lat_text, "latency median %.0f us p99 %.0f us", percentile(window_latency, 0.5),
+        std::snprintf(lat_text, sizeof lat_text, "latency (tracker sample -> hand state) median %.0f us p99 %.0f us", percentile(window_latency, 0.5),
                       percentile(window_latency, 0.99));
-      std::printf("launch: t %5.1f s | %s | %s | penetration %s | states %ld stale %ld\n", replayS() < 0 ? 0.0 : replayS(),
+      std::printf("launch: t %5.1f s | %s | %s | penetration max %s | hand states %ld (stale %ld)\n", replayS() < 0 ? 0.0 : replayS(),
                   rates.c_str(), lat_text, scene_down ? "not scored (scene down)" : pen_text, rep.states, rep.stale_states);
       std::fflush(stdout);
       window_latency.clear();

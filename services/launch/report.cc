@@ -27,13 +27,15 @@ namespace {
 }  // namespace
 
 void printSummary(const RunReport& r) {
-  std::printf("launch: %s run of %.1f s: %llu of %llu frames delivered fresh in every cluster%s, %ld hand states received (%ld stale)\n",
+  std::printf("launch: %s run of %.1f s: %llu of %llu frames delivered fresh in every cluster%s, %ld hand states received "
+              "(%ld of them stale: flagged by the resolver, or older than %.2f s when they arrived)\n",
               r.lockstep ? "lock-step" : "live", r.run_s, static_cast<unsigned long long>(r.frames_complete),
               static_cast<unsigned long long>(r.expected_frames),
-              r.ingest_runs > 1 ? (" (" + std::to_string(r.ingest_runs) + " ingest runs)").c_str() : "", r.states, r.stale_states);
+              r.ingest_runs > 1 ? (" (" + std::to_string(r.ingest_runs) + " ingest runs)").c_str() : "", r.states, r.stale_states,
+              r.stale_after_s);
   for (size_t c = 0; c < r.clusters.size() && c < r.delivery.size(); ++c) {
     const DeliveryCounts& d = r.delivery[c];
-    std::printf("  delivery %-8s expected %llu, fresh %llu, stale %llu, lost %llu\n", r.clusters[c].c_str(),
+    std::printf("  delivery %-8s frames expected %llu, fresh %llu, stale %llu, lost %llu\n", r.clusters[c].c_str(),
                 static_cast<unsigned long long>(d.expected), static_cast<unsigned long long>(d.fresh),
                 static_cast<unsigned long long>(d.stale), static_cast<unsigned long long>(d.lost));
   }
@@ -88,7 +90,7 @@ void printSummary(const RunReport& r) {
   std::printf("  late joiner: %zu of %llu HandStates and the SceneDescription %s%s\n", r.late_states,
               static_cast<unsigned long long>(r.hands), r.late_description ? "received" : "NOT received",
               r.late_ms >= 0 ? (" in " + std::to_string(static_cast<int>(r.late_ms)) + " ms").c_str() : "");
-  std::printf("  shutdown:%s; shared-memory segments left: %zu%s\n", r.exits.c_str(), r.shm_left,
+  std::printf("  exit codes at shutdown:%s; shared-memory segments left: %zu%s\n", r.exits.c_str(), r.shm_left,
               r.shm_removed ? (" (" + std::to_string(r.shm_removed) + " left by this lab's killed processes, removed)").c_str() : "");
   if (!r.foreign.empty()) {
     std::string names;
