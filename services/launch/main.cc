@@ -525,6 +525,18 @@ int main(int argc, char** argv) {
       source_tally.update(source_run, counts);  // run 0: not a tracker source
     }
   };
+  // Start-up failed: stop what runs, say why, release the DDS entities (a participant alive at
+  // exit() leaves its shared-memory segment behind); a stop request is not a failure.
+  auto startupFailed = [&](const std::string& why) {
+    sup.stop(std::chrono::milliseconds(3000));
+    std::fprintf(stderr, "godhand-launch: start-up failed: %s\n", why.c_str());
+    hs_in.reset();
+    ss_in.reset();
+    ht_in.reset();
+    st_in.reset();
+    dp.reset();
+    return stopRequested() ? 0 : kExitStartup;
+  };
   try {
     for (const ChildSpec& c : specs)
       if (c.name != "ingest" && !stopRequested()) sup.start(c);  // a stop request ends the start-up here
@@ -552,14 +564,7 @@ int main(int argc, char** argv) {
                                           : "services not running after " + fmt17(start_timeout) + " s: " + names;
         if (specs.empty() && !remote.empty()) why += " (every service of this lab runs on another host; start them there first)";
         for (const ChildSpec& c : specs) why += "\n  " + c.name + ":\n" + tail(c.log_file, 6);
-        sup.stop(std::chrono::milliseconds(3000));
-        std::fprintf(stderr, "godhand-launch: start-up failed: %s\n", why.c_str());
-        hs_in.reset();
-        ss_in.reset();
-        ht_in.reset();
-        st_in.reset();
-        dp.reset();
-        return stopRequested() ? 0 : kExitStartup;
+        return startupFailed(why);
       }
       dp->waitForData(Clock::now() + std::chrono::milliseconds(50));
     }
@@ -576,17 +581,12 @@ int main(int argc, char** argv) {
         takeStatus();
       }
       if (!status.count("ingest")) {
-        sup.stop(std::chrono::milliseconds(3000));
-        if (!stopRequested())
-          std::fprintf(stderr, "godhand-launch: start-up failed: the ingest (on %s, not started here) was not heard from in %s s "
-                               "(is it running there, and is %s this lab's name for that machine? this machine is %s)\n",
-                       ing ? ing->host.c_str() : "?", fmt17(start_timeout).c_str(), ing ? ing->host.c_str() : "?", host_name.empty() ? this_host : host_name.c_str());
-        hs_in.reset();
-        ss_in.reset();
-        ht_in.reset();
-        st_in.reset();
-        dp.reset();
-        return stopRequested() ? 0 : kExitStartup;
+        const std::string host = ing ? ing->host : "?";
+        return startupFailed(stopRequested() ? "stopped during start-up"
+                                             : "the ingest (on " + host + ", not started here) was not heard from in " +
+                                                   fmt17(start_timeout) + " s (is it running there, and is " + host +
+                                                   " this lab's name for that machine? this machine is " +
+                                                   (host_name.empty() ? std::string(this_host) : host_name) + ")");
       }
     }
     noteAllShm();
