@@ -420,6 +420,10 @@ bool Decoder::feed(std::string_view bytes, std::int64_t arrival_us, leap::Tracke
       ++restarts_;
       last_ts_ = -1.0;
       day_offset_us_ = 0;
+    } else if (arrival_us - last_accept_arrival_us_ >= refollow_after_us) {
+      ++refollows_;  // everything behind the book for a while: the book was wrong, follow the stream
+      last_ts_ = -1.0;
+      day_offset_us_ = 0;
     } else {
       reject(Reject::kStale, "fr " + std::to_string(d.frame) + " after fr " + std::to_string(last_frame_));
       return false;
@@ -427,6 +431,7 @@ bool Decoder::feed(std::string_view bytes, std::int64_t arrival_us, leap::Tracke
   }
   have_last_ = true;
   last_frame_ = d.frame;
+  last_accept_arrival_us_ = arrival_us;
   seen_lines_ |= d.lines;
   ++accepted_;
   frame->frame_id = static_cast<std::int64_t>(d.frame);
@@ -469,6 +474,8 @@ std::string Decoder::summary() const {
     }
   if (!any) s += "none";
   if (restarts_) s += "; tracker restarts " + std::to_string(restarts_);
+  if (refollows_) s += "; followed again after everything was behind a frame far ahead for " +
+                       std::to_string(refollow_after_us / 1000) + " ms " + std::to_string(refollows_);
   if (hands_untracked_) s += "; hands with quality < 0 (not tracked) " + std::to_string(hands_untracked_);
   if (bodies_untracked_) s += "; 6d bodies with quality < 0 (not tracked) " + std::to_string(bodies_untracked_);
   if (fingers_synth_) s += "; fingers synthesised (3-finger hands) " + std::to_string(fingers_synth_);

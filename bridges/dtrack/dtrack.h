@@ -163,6 +163,11 @@ class Decoder {
   const std::string& lastDetail() const { return last_detail_; }
   /// Frame counter jumps back by more than this: a tracker restart, accepted.
   std::uint64_t restart_window = 1000;
+  /// Nothing accepted for this long (arrival time) while datagrams keep coming that are all behind
+  /// the last accepted frame: they are followed again (counted). One datagram far ahead, e.g. a
+  /// spoofed one, stopped tracking for 1,000 frames (10 s at 100 Hz) before this.
+  std::int64_t refollow_after_us = 250000;
+  std::uint64_t refollows() const { return refollows_; }
 
  private:
   ParseLimits limits_;
@@ -172,6 +177,8 @@ class Decoder {
   std::array<std::uint64_t, static_cast<std::size_t>(Reject::kCount)> rejected_{};
   bool have_last_ = false;
   std::uint64_t last_frame_ = 0;
+  std::int64_t last_accept_arrival_us_ = 0;
+  std::uint64_t refollows_ = 0;
   unsigned seen_lines_ = 0;  ///< union of the line kinds of accepted datagrams
   double last_ts_ = -1.0;
   std::int64_t day_offset_us_ = 0;  ///< ts wraps at midnight

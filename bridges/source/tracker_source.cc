@@ -367,7 +367,10 @@ class DtrackUdp final : public TrackerSource {
   }
   bool next(TrackerFrame* frame) override {
     if (fd_ < 0) start();
-    for (;;) {
+    // At most kDatagramsPerCall datagrams a call: a flood of datagrams that parse slowly and are
+    // rejected (29 KB each, 20,000 a second) otherwise kept this loop from returning, and the
+    // ingest from publishing or sending heartbeats, for as long as the flood lasted.
+    for (int handled = 0; handled < kDatagramsPerCall; ++handled) {
       const ssize_t n = ::recv(fd_, buf_.data(), buf_.size(), MSG_TRUNC);
       if (n < 0) {
         if (errno == EINTR) continue;
@@ -385,7 +388,9 @@ class DtrackUdp final : public TrackerSource {
         return true;
       }
     }
+    return false;  // more may be waiting: the caller polls again
   }
+  static constexpr int kDatagramsPerCall = 64;
   SourceStats stats() const override {
     SourceStats s;
     s.frames = dec_.accepted();

@@ -245,8 +245,10 @@ int main(int argc, char** argv) {
     for (;;) {
       if (source->next(&f)) {
         // Real time: when several frames queued up (a burst, or the start barrier), only the
-        // newest is published; the others are counted as superseded.
-        while (source->next(&f_newer)) {
+        // newest is published; the others are counted as superseded. (For at most 10 ms: a flood
+        // of valid datagrams must not keep the ingest from publishing and heartbeats.)
+        const auto drain_until = SteadyClock::now() + std::chrono::milliseconds(10);
+        while (SteadyClock::now() < drain_until && source->next(&f_newer)) {
           std::swap(f, f_newer);
           ++superseded;
         }

@@ -83,7 +83,9 @@ void Hub::reject(Client& c, const std::string& why) {
   ++c.stats.rejected;
   // One status message per rejection, but never more than the flow control allows.
   const std::string text = json{{"op", "status"}, {"level", 2}, {"message", why}}.dump();
-  if (c.sink->buffered() + text.size() <= limits_.max_queued_bytes) c.sink->sendText(text);
+  // (At the flow-control mark, not the hard cap: each reply is a message of its own to the
+  // transport, and 64 clients sending bad messages without reading held 6-22 MB each.)
+  if (c.sink->buffered() + text.size() <= limits_.send_below_bytes) c.sink->sendText(text);
 }
 
 bool Hub::sendable(const Client& c, std::size_t size) const {

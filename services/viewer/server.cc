@@ -1,5 +1,6 @@
 #include "viewer/server.h"
 
+#include <algorithm>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -38,6 +39,9 @@ struct Server::Impl {
   WsServer ws;
   std::unique_ptr<Hub> hub;
   std::map<Hdl, std::pair<int, std::unique_ptr<ConnSink>>, std::owner_less<Hdl>> conns;
+  std::vector<Hdl> http_in_flight;  ///< HTTP connections answered and not yet gone (weak handles)
+  std::size_t overflow_bytes = 0;   ///< a WebSocket queue beyond this is closed (twice the largest message)
+  std::size_t pong_below_bytes = 0; ///< a ping is answered while the queue is below this
   std::unique_ptr<boost::asio::steady_timer> stats_timer;
 };
 
@@ -65,8 +69,16 @@ Server::Server(const ServerOptions& o) : impl_(std::make_unique<Impl>()), inbox_
   ws.set_max_http_body_size(o.limits.max_client_message);
   ws.set_listen_backlog(64);
 
+  impl_->overflow_bytes = 2 * o.limits.max_queued_bytes;
+  impl_->pong_below_bytes = o.limits.send_below_bytes;
   ws.set_validate_handler([this](Hdl h) {
     auto con = impl_->ws.get_con_from_hdl(h);
+    // Only RFC 6455 (version 13): websocketpp's reader of the older drafts (hybi-00 / hixie-76)
+    // has no message size limit, so a client that never ends a message grew the viewer without bound.
+    if (con->get_request_header("Sec-WebSocket-Version") != "13") {
+      ++old_protocol_refused_;
+      return false;
+    }
     for (const std::string& p : con->get_requested_subprotocols())
       if (p == kSubprotocol) {
         con->select_subprotocol(kSubprotocol);
@@ -94,6 +106,18 @@ Server::Server(const ServerOptions& o) : impl_(std::make_unique<Impl>()), inbox_
   };
   ws.set_close_handler(closed);
   ws.set_fail_handler(closed);
+  // A ping is answered (websocketpp queues a pong, with no bound of its own) only while the
+  // client's queue is below the flow-control mark: a client that pings and never reads cannot
+  // grow it (one did by 290 MB/s).
+  ws.set_ping_handler([this](Hdl h, std::string) {
+    websocketpp::lib::error_code e;
+    auto con = impl_->ws.get_con_from_hdl(h, e);
+    if (e || con->get_buffered_amount() >= impl_->pong_below_bytes) {
+      ++pings_unanswered_;
+      return false;
+    }
+    return true;
+  });
   ws.set_message_handler([this](Hdl h, WsServer::message_ptr m) {
     auto it = impl_->conns.find(h);
     if (it == impl_->conns.end()) return;
@@ -103,6 +127,18 @@ Server::Server(const ServerOptions& o) : impl_(std::make_unique<Impl>()), inbox_
   ws.set_http_handler([this](Hdl h) {
     ++http_requests_;
     auto con = impl_->ws.get_con_from_hdl(h);
+    // At most kMaxHttpInFlight responses on their way at once (each holds its body until the
+    // client has read it: 1,200 clients that never read held 1.7 GB); the rest: 503, counted.
+    auto& flight = impl_->http_in_flight;
+    flight.erase(std::remove_if(flight.begin(), flight.end(), [](const Hdl& x) { return x.expired(); }), flight.end());
+    if (static_cast<int>(flight.size()) >= kMaxHttpInFlight) {
+      ++http_refused_;
+      con->set_status(websocketpp::http::status_code::service_unavailable);
+      con->replace_header("Retry-After", "1");
+      con->set_body("busy\n");
+      return;
+    }
+    flight.push_back(h);
     std::string path = con->get_resource();
     const auto q = path.find('?');
     if (q != std::string::npos) path.resize(q);
@@ -118,7 +154,9 @@ Server::Server(const ServerOptions& o) : impl_(std::make_unique<Impl>()), inbox_
       j << "{\"clients\":" << s.clients << ",\"opened\":" << s.opened << ",\"closed\":" << s.closed
         << ",\"refused\":" << s.refused << ",\"published\":" << s.published << ",\"sent\":" << s.sent
         << ",\"dropped\":" << s.dropped << ",\"superseded\":" << s.superseded << ",\"rejected\":" << s.rejected << ",\"inbox_dropped\":" << inbox_dropped_.load()
-        << ",\"client_published\":" << s.client_published << ",\"per_client\":[";
+        << ",\"client_published\":" << s.client_published << ",\"http_refused\":" << http_refused_.load()
+        << ",\"pings_unanswered\":" << pings_unanswered_.load() << ",\"overflow_closed\":" << overflow_closed_.load()
+        << ",\"old_protocol_refused\":" << old_protocol_refused_.load() << ",\"per_client\":[";
       for (std::size_t i = 0; i < s.per_client.size(); ++i)
         j << (i ? "," : "") << "{\"id\":" << s.per_client[i].id << ",\"sent\":" << s.per_client[i].sent
           << ",\"dropped\":" << s.per_client[i].dropped << ",\"superseded\":" << s.per_client[i].superseded
@@ -168,6 +206,16 @@ void Server::start() {
     void operator()(const boost::system::error_code& e) {
       if (e) return;
       self->impl_->hub->flush();
+      // Whatever filled it (the Hub keeps its own sends below max_queued_bytes), a WebSocket
+      // queue past twice that is a client that does not read: closed, counted.
+      for (auto& [h, c] : self->impl_->conns)
+        if (c.second->buffered() > self->impl_->overflow_bytes) {
+          websocketpp::lib::error_code ec;
+          self->impl_->ws.get_con_from_hdl(h, ec);
+          if (ec) continue;
+          ++self->overflow_closed_;
+          self->impl_->ws.close(h, websocketpp::close::status::policy_violation, "not reading", ec);
+        }
       if (++tick % 20 == 0) copy();
       self->impl_->stats_timer->expires_after(std::chrono::milliseconds(10));
       self->impl_->stats_timer->async_wait(*this);

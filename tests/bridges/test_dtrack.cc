@@ -206,6 +206,38 @@ TEST(DtrackDecoder, StaleDuplicateRestartAndGarbage) {
   EXPECT_NE(s.find("parse error"), std::string::npos) << s;
 }
 
+TEST(DtrackDecoder, OneDatagramFarAheadStopsTrackingForAQuarterSecondAtMost) {
+  // pinch.dtrack's datagrams at 100 Hz (arrival 10 ms apart); after the 20th, one copy whose frame
+  // counter is 999 ahead (a spoofed datagram: within the restart window, so the real ones behind
+  // it read as stale). Found by review: every real datagram was then rejected for 1,000 frames.
+  const auto dgs = sample("pinch.dtrack");
+  ASSERT_GT(dgs.size(), 80u);
+  auto frameOf = [](const std::string& d) { return std::stoull(d.substr(3, d.find("\r\n") - 3)); };
+  Decoder dec;
+  br::TrackerFrame f;
+  std::int64_t t = 0;
+  for (int i = 0; i < 20; ++i, t += 10000) ASSERT_TRUE(dec.feed(dgs[static_cast<size_t>(i)], t, &f)) << i;
+  std::string spoof = dgs[20];
+  spoof.replace(0, spoof.find("\r\n"), "fr " + std::to_string(frameOf(dgs[19]) + 999));
+  ASSERT_TRUE(dec.feed(spoof, t, &f));
+  t += 10000;
+  int rejected = 0, first_accepted = -1;
+  for (int i = 20; i < 80; ++i, t += 10000) {
+    if (dec.feed(dgs[static_cast<size_t>(i)], t, &f)) {
+      if (first_accepted < 0) first_accepted = i;
+      EXPECT_EQ(static_cast<std::uint64_t>(f.frame_id), frameOf(dgs[static_cast<size_t>(i)]));
+    } else {
+      ASSERT_LT(first_accepted, 0) << "a real datagram rejected after the stream was followed again: " << i;
+      ++rejected;
+    }
+  }
+  EXPECT_EQ(dec.refollows(), 1u);
+  EXPECT_EQ(rejected, 24);  // arrivals 10 … 240 ms after the spoofed one: stale; at 250 ms followed again
+  EXPECT_EQ(first_accepted, 44);
+  EXPECT_EQ(dec.restarts(), 0u);
+  EXPECT_NE(dec.summary().find("followed again"), std::string::npos) << dec.summary();
+}
+
 TEST(DtrackDecoder, QualityMinusOneIsNotTracked) {
   std::string g = sample("pinch.dtrack")[0];
   g.replace(g.find("[1 1.000 1 5]"), 13, "[1 -1.000 1 5]");

@@ -589,6 +589,19 @@ async function caseAbuse() {
   const g = net.connect(v.port, '127.0.0.1');
   g.on('error', () => {});
   g.write('\x00\x01garbage\r\n\r\n');
+  // A handshake of a WebSocket draft before RFC 6455 (hixie-76 / hybi-00: no version header),
+  // whose reader in websocketpp has no message size limit: refused (a client that never ended a
+  // message grew the viewer by 1 MB per MB sent).
+  const oldProto = await new Promise((resolve) => {
+    const s = net.connect(v.port, '127.0.0.1');
+    let b = '';
+    s.on('error', () => resolve('error'));
+    s.on('data', (d) => { b += d.toString('latin1'); if (b.includes('\r\n')) { s.destroy(); resolve(b.split(' ')[1]); } });
+    s.on('connect', () => s.write('GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: WebSocket\r\nConnection: Upgrade\r\n' +
+      'Sec-WebSocket-Key1: 4 @1  46546xW%0l 1 5\r\nSec-WebSocket-Key2: 12998 5 Y3 1  .P00\r\n\r\n^n:ds[4U'));
+    setTimeout(() => resolve('timeout'), 5000);
+  });
+  check(oldProto === '400', `a pre-RFC 6455 (hybi-00) handshake is refused (${oldProto})`);
   const escape = await fetch(v.url + '../../../etc/passwd').then((x) => x.status).catch(() => 0);
   const escape2 = await fetch(v.url + 'mesh/..%2f..%2fetc%2fpasswd').then((x) => x.status).catch(() => 0);
   // 3. Twenty clients from the browser connecting, subscribing and leaving.
