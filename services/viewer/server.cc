@@ -4,6 +4,7 @@
 #include <fstream>
 #include <set>
 #include <sstream>
+#include <vector>
 
 #include <websocketpp/config/asio_no_tls.hpp>
 #include <websocketpp/server.hpp>
@@ -208,14 +209,17 @@ void Server::start() {
       self->impl_->hub->flush();
       // Whatever filled it (the Hub keeps its own sends below max_queued_bytes), a WebSocket
       // queue past twice that is a client that does not read: closed, counted.
+      // (Handles first, then the closes: a close may run the close handler, which erases from conns.)
+      std::vector<Hdl> over;
       for (auto& [h, c] : self->impl_->conns)
-        if (c.second->buffered() > self->impl_->overflow_bytes) {
-          websocketpp::lib::error_code ec;
-          self->impl_->ws.get_con_from_hdl(h, ec);
-          if (ec) continue;
-          ++self->overflow_closed_;
-          self->impl_->ws.close(h, websocketpp::close::status::policy_violation, "not reading", ec);
-        }
+        if (c.second->buffered() > self->impl_->overflow_bytes) over.push_back(h);
+      for (const Hdl& h : over) {
+        websocketpp::lib::error_code ec;
+        self->impl_->ws.get_con_from_hdl(h, ec);
+        if (ec) continue;
+        ++self->overflow_closed_;
+        self->impl_->ws.close(h, websocketpp::close::status::policy_violation, "not reading", ec);
+      }
       if (++tick % 20 == 0) copy();
       self->impl_->stats_timer->expires_after(std::chrono::milliseconds(10));
       self->impl_->stats_timer->async_wait(*this);
