@@ -164,7 +164,8 @@ Script parseScript(const std::string& text, const std::string& name) {
       }
       if (parts.size() > 1 && ++hands_on_line[c.side] > 1) fail(name, n, "one motion per hand on a line");
       moved = true;
-      if (c.op == "move" || c.op == "curl" || c.op == "roll" || c.op == "hold") line_seconds = std::max(line_seconds, c.seconds);
+      if (c.op == "move" || c.op == "curl" || c.op == "roll" || c.op == "hold" || c.op == "lost")
+        line_seconds = std::max(line_seconds, c.seconds);
       sc.commands.push_back(c);
     }
     if (line_seconds >= 0.0) {

@@ -3,6 +3,7 @@
 #include <google/protobuf/text_format.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -517,8 +518,20 @@ MeshSpec parseMeshSpec(const std::string& whole) {
     }
     // A tail of three comma-separated words is a position (nan and inf included, to be refused
     // as such rather than taken for part of the file name).
-    const bool numbers_only = (tail.find_first_not_of("0123456789+-.,eE") == std::string::npos ||
-                               (std::count(tail.begin(), tail.end(), ',') == 2 && tail.find('/') == std::string::npos));
+    auto numberWord = [](std::string w) {  // a number, or nan / inf written as one
+      for (char& ch : w) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+      if (!w.empty() && (w[0] == '+' || w[0] == '-')) w.erase(0, 1);
+      return w == "nan" || w == "inf" || w == "infinity" ||
+             (!w.empty() && w.find_first_not_of("0123456789.e+-") == std::string::npos);
+    };
+    bool numbers_only = std::count(tail.begin(), tail.end(), ',') == 2;
+    for (size_t a = 0; numbers_only;) {
+      const size_t comma = tail.find(',', a);
+      numbers_only = numberWord(tail.substr(a, comma == std::string::npos ? std::string::npos : comma - a));
+      if (comma == std::string::npos) break;
+      a = comma + 1;
+    }
+    numbers_only = numbers_only || tail.find_first_not_of("0123456789+-.,eE") == std::string::npos;
     if (numbers_only && !tail.empty()) {
       if (v.size() != 3 || !Vec3(v[0], v[1], v[2]).allFinite() || Vec3(v[0], v[1], v[2]).cwiseAbs().maxCoeff() > 1e6)
         throw SceneError("--mesh " + whole + ": position '" + tail + "' must be three finite numbers of metres (FILE[:SIZE_M]@X,Y,Z)");

@@ -479,9 +479,9 @@ int main(int argc, char** argv) {
   char this_host[64] = {0};
   gethostname(this_host, sizeof this_host - 1);
   auto reportForeign = [&](const std::string& who) {
-    if (foreign_seen.size() >= 32) return;  // bounded: a flood of distinct names is not listed
+    if (foreign_seen.size() > 32) return;  // bounded: a flood of distinct names is not listed
     if (foreign_seen.insert(who).second) {
-      if (foreign_seen.size() == 32) {
+      if (foreign_seen.size() > 32) {
         foreign.push_back("more, not listed");
         return;
       }

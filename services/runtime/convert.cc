@@ -404,7 +404,8 @@ bool plausible(const msg::ServiceStatus& s, std::string* why) {
   constexpr std::uint64_t kMaxCount = std::uint64_t{1} << 53;
   if (!std::isfinite(s.rate_hz()) || s.rate_hz() < 0.0) return fail(why, "rate not finite or negative");
   if (!std::isfinite(s.latency_median_us())) return fail(why, "latency not finite");
-  for (const std::uint64_t c : {s.frame(), s.samples_in(), s.samples_out(), s.rejected(), s.late(), s.deadline_misses()})
+  // (Not the frame: a number from the wire, which one hostile sample can set for a real service.)
+  for (const std::uint64_t c : {s.samples_in(), s.samples_out(), s.rejected(), s.late(), s.deadline_misses()})
     if (c > kMaxCount) return fail(why, "a counter above 2^53");
   const msg::SourceCounts& src = s.source();
   std::uint64_t rejected = 0;

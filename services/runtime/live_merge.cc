@@ -19,10 +19,14 @@ LiveMerge::Offer LiveMerge::offer(size_t h, std::uint64_t run, std::uint64_t fra
   Offer result = Offer::Accepted;
   // Nothing of cluster h accepted for stale_after while its samples keep coming: what comes is
   // followed again. (A sample whose frame number or source time is far ahead, e.g. a hostile one,
-  // would otherwise make every later sample of the real run late, for good.)
+  // would otherwise make every later sample of the real run late, for good.) For another run,
+  // the whole merge must have been idle that long: a slow cluster's leftover of the old run (its
+  // solver still busy with an old target when the ingest restarted) is quiet itself, but must
+  // not take the merge back from the new run the other clusters deliver.
   const bool quiet = last_in_[h] == Clock::time_point{} || now - last_in_[h] >= seconds(stale_after_);
+  const bool idle = last_accept_ == Clock::time_point{} || now - last_accept_ >= seconds(stale_after_);
   if (run != run_) {
-    if (run_ != 0 && !quiet) {
+    if (run_ != 0 && !idle) {
       // A straggler of an old run; or a new run whose source time is ahead of the current run's
       // by more than the time since the current run's newest sample came (plus clock skew): not
       // a restarted ingest's.

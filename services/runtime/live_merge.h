@@ -5,9 +5,10 @@
 // waited for and is held); with nothing new for stale_after, the held hands are re-published (as
 // stale) so subscribers see that nothing moves them. A new ingest run (Stamp.run; frame numbers
 // start again) replaces the old one; a straggler of an older run is late, and so is a new run
-// whose source time is implausibly far ahead while the current run is live. A cluster of which
-// nothing was accepted for stale_after follows what comes again (its book restarts): no single
-// sample, however far ahead its frame or time, stops the merge for longer. Injected clock.
+// whose source time is implausibly far ahead while the current run is live (anything accepted
+// within stale_after). A cluster of which nothing was accepted for stale_after follows what comes
+// again (its book restarts): no single sample, however far ahead its frame or time, stops the
+// merge for longer. Injected clock.
 #pragma once
 
 #include <chrono>

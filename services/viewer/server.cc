@@ -215,10 +215,12 @@ void Server::start() {
         if (c.second->buffered() > self->impl_->overflow_bytes) over.push_back(h);
       for (const Hdl& h : over) {
         websocketpp::lib::error_code ec;
-        self->impl_->ws.get_con_from_hdl(h, ec);
-        if (ec) continue;
-        ++self->overflow_closed_;
+        auto con = self->impl_->ws.get_con_from_hdl(h, ec);
+        // (Once: a closing connection stays in conns, its queue still full, until the close
+        // handshake times out.)
+        if (ec || con->get_state() != websocketpp::session::state::open) continue;
         self->impl_->ws.close(h, websocketpp::close::status::policy_violation, "not reading", ec);
+        if (!ec) ++self->overflow_closed_;
       }
       if (++tick % 20 == 0) copy();
       self->impl_->stats_timer->expires_after(std::chrono::milliseconds(10));

@@ -46,6 +46,7 @@ TEST(Synthetic, ParseErrorsNameTheLine) {
       {"godhand-synthetic 1\nstart right 0 0 0\nmove right 1 0 0 0 ;\n", ":3: empty motion"},
       {"godhand-synthetic 1\nstart right 0 0 0\nmove right 1 0 0 0 ; move left 1 0 0 0\n", ":3: 'move' of the left hand before"},
       {"godhand-synthetic 1\nrate 10000\nstart right 0 0 0\nhold 30\nhold 3600\n", ":5: the script makes more than 360000 frames"},
+      {"godhand-synthetic 1\nrate 10000\nstart right 0 0 0\nlost right 3600\n", ":4: the script makes more than 360000 frames"},
   };
   for (const auto& b : bad) {
     try {

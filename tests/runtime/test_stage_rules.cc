@@ -156,6 +156,26 @@ TEST(LiveMerge, NoSingleSampleFarAheadStopsTheRealRun) {
   EXPECT_EQ(m.offer(0, 7, 17, 340 * ms, T0 + 730ms), M::Offer::Late);
 }
 
+TEST(LiveMerge, ASlowClustersLeftoverOfTheOldRunDoesNotTakeTheMergeBack) {
+  // Cluster 0 proposes every 20 ms, cluster 1 (a slow solver) every 300 ms: cluster 1 is always
+  // "quiet" (nothing of it accepted within 250 ms). The ingest restarts (run 7 -> 9) after a 2.5 s
+  // gap; cluster 1 then finishes the run-7 target it was busy with. (Found by review: that
+  // leftover switched the merge back to run 7 and made run 9's frames late.)
+  const std::int64_t ms = 1000000;
+  M m(2, 0.020, 0.5, 0.25, T0);
+  EXPECT_EQ(m.offer(0, 7, 1, 1 * ms, T0), M::Offer::NewRun);
+  EXPECT_EQ(m.offer(1, 7, 1, 1 * ms, T0 + 1ms), M::Offer::Accepted);
+  m.published(m.decide(true, T0 + 1ms), T0 + 1ms);
+  EXPECT_EQ(m.offer(0, 9, 1, 2600 * ms, T0 + 2600ms), M::Offer::NewRun);
+  m.published(m.decide(true, T0 + 2620ms), T0 + 2620ms);
+  EXPECT_EQ(m.offer(0, 9, 2, 2620 * ms, T0 + 2620ms), M::Offer::Accepted);
+  EXPECT_EQ(m.offer(1, 7, 2, 300 * ms, T0 + 2625ms), M::Offer::Late);  // the slow cluster's leftover
+  EXPECT_EQ(m.run(), 9u);
+  EXPECT_EQ(m.offer(0, 9, 3, 2640 * ms, T0 + 2640ms), M::Offer::Superseded);  // (frame 2 not resolved yet)
+  EXPECT_EQ(m.offer(1, 9, 2, 2600 * ms, T0 + 2900ms), M::Offer::Accepted);    // its first of run 9
+  EXPECT_EQ(m.run(), 9u);
+}
+
 TEST(LiveMerge, RepublishesHeldHandsWhenNothingComesAndNeverWithoutAScene) {
   M m(2, 0.020, 0.5, 0.25, T0);
   m.offer(0, 7, 3, 3000, T0);

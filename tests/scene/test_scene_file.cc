@@ -546,6 +546,8 @@ TEST(MeshScene, ParseMeshSpec) {
   EXPECT_EQ(parseMeshSpec("a.obj@0,0,1").size, 0.15);
   EXPECT_FALSE(parseMeshSpec("a.obj:0.2").at.has_value());
   EXPECT_EQ(parseMeshSpec("me@lab/a.obj").path, "me@lab/a.obj");
+  EXPECT_EQ(parseMeshSpec("scan@1,2,3.obj").path, "scan@1,2,3.obj");  // three words, not three numbers
+  EXPECT_FALSE(parseMeshSpec("scan@1,2,3.obj").at.has_value());
   EXPECT_FALSE(parseMeshSpec("me@lab/a.obj").at.has_value());
   for (const char* bad : {"a.obj:abc", "a.obj:", "a.obj:-1", "a.obj:0", "a.obj:0.2x", "a.obj:nan", ":0.2", "",
                           "a.obj@1,2", "a.obj@1,2,3,4", "a.obj:0.2@1,,3", "a.obj@1e9,0,0", "a.obj@-", "@1,2,3"}) {
