@@ -133,6 +133,19 @@ bool readHand(const json& h, const Mat3& R_WT, const Vec3& p_WT, HandCandidate* 
   return true;
 }
 
+/// Every bone of the hand (palm → mcp, then the phalanges) within [kMinBoneM, kMaxBoneM].
+bool plausibleBones(const TrackedHand& h) {
+  for (const auto& finger : h.joints_W) {
+    Vec3 from = h.X_W_palm.p;
+    for (const Vec3& joint : finger) {
+      const double len = (joint - from).norm();
+      if (!(len >= kMinBoneM && len <= kMaxBoneM)) return false;
+      from = joint;
+    }
+  }
+  return true;
+}
+
 constexpr const char* kJointKeys[4] = {"mcpPosition", "pipPosition", "dipPosition", "tipPosition"};
 
 /// Assigns the frame's pointables to the candidate hands (by handId and finger type).
@@ -227,6 +240,7 @@ const char* reasonName(HandReject r) {
     case HandReject::kDuplicateFinger: return "duplicate finger";
     case HandReject::kFingerMissingField: return "finger position missing";
     case HandReject::kFingerNotFinite: return "finger position NaN or infinite";
+    case HandReject::kDegenerateFinger: return "degenerate finger (a bone under 1 mm or over 0.15 m)";
     case HandReject::kCount: break;
   }
   return "?";
@@ -380,6 +394,10 @@ Recording Recording::fromText(const std::string& text, const std::string& source
         if (c.ok && c.finger_status != VecStatus::kOk) {
           c.ok = false;
           c.reason = c.finger_status == VecStatus::kMissing ? HandReject::kFingerMissingField : HandReject::kFingerNotFinite;
+        }
+        if (c.ok && !plausibleBones(c.hand)) {
+          c.ok = false;
+          c.reason = HandReject::kDegenerateFinger;
         }
       }
       if (c.ok) {

@@ -90,6 +90,7 @@ enum class HandReject : int {
   kDuplicateFinger,    ///< some finger type has two pointables
   kFingerMissingField, ///< a finger's mcp/pip/dip/tip position absent or not 3 numbers
   kFingerNotFinite,    ///< a finger position is NaN (null) or infinite
+  kDegenerateFinger,   ///< a bone (palm→mcp, mcp→pip, pip→dip, dip→tip) outside [kMinBoneM, kMaxBoneM]
   kCount
 };
 const char* reasonName(FrameReject r);
@@ -117,6 +118,12 @@ class RecordingError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+/// The bone lengths a tracked hand may have (every source's skeleton check: Leap's palm→mcp and
+/// phalanges, the skeleton bridges' wrist→MCP and phalanges): a hand with every joint at one
+/// point, or a bone longer than a hand, is not a hand (real Leap hands: 16–61 mm).
+constexpr double kMinBoneM = 1e-3;
+constexpr double kMaxBoneM = 0.15;
 
 class Recording {
  public:

@@ -32,8 +32,8 @@ constexpr int kXrJoints = 26;
 
 struct SkeletonLimits {
   double max_position_m = 100.0;  ///< |coordinate| in the tracker's frame (before calibration)
-  double min_bone_m = 1e-3;       ///< every bone used (wrist→MCP, phalanges) at least this long
-  double max_bone_m = 0.15;       ///< and at most this long
+  double min_bone_m = leap::kMinBoneM;  ///< every bone used (wrist→MCP, phalanges) at least this long
+  double max_bone_m = leap::kMaxBoneM;  ///< and at most this long
 };
 
 /// Why a skeleton was refused (counted by the readers).

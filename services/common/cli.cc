@@ -64,7 +64,10 @@ void Cli::option(const std::string& name, std::string* value, const std::string&
   if (!value) throw std::logic_error("Cli: null variable for --" + name);
   Opt& o = add(name, meta, help);
   o.def = *value;
-  o.set = [value](const std::string& v) {
+  // An empty value is never meant: `--partition "$UNSET"` would silently be "no partition".
+  const std::string flag = "--" + o.name;
+  o.set = [value, flag](const std::string& v) {
+    if (v.empty()) return flag + ": empty value (leave the option out for its default)";
     *value = v;
     return std::string();
   };
@@ -110,7 +113,9 @@ void Cli::multi(const std::string& name, std::vector<std::string>* values, const
   Opt& o = add(name, meta, help);
   for (const std::string& v : *values) o.def += (o.def.empty() ? "" : " ") + v;
   o.help += (o.help.empty() ? "" : " ") + std::string("(repeatable)");
-  o.set = [values](const std::string& v) {
+  const std::string flag = "--" + o.name;
+  o.set = [values, flag](const std::string& v) {
+    if (v.empty()) return flag + ": empty value";
     values->push_back(v);
     return std::string();
   };

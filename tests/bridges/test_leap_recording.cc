@@ -313,6 +313,10 @@ TEST(LeapRecording, HandRejectionReasons) {
       {"missing finger", "{\"id\": 82, \"handId\": 8, \"type\": 2,", "{\"id\": 82, \"handId\": 99, \"type\": 2,", HandReject::kMissingFinger},
       {"finger type twice", "{\"id\": 82, \"handId\": 8, \"type\": 2,", "{\"id\": 82, \"handId\": 8, \"type\": 1,", HandReject::kDuplicateFinger},
       {"NaN finger", "\"tipPosition\": [-155, 305, 0]", "\"tipPosition\": [null, 305, 0]", HandReject::kFingerNotFinite},
+      // A bone of no length (the tip on the dip), one longer than a hand, a finger at the palm.
+      {"tip on its dip", "\"tipPosition\": [-155, 305, 0]", "\"tipPosition\": [-155, 285.5, 0]", HandReject::kDegenerateFinger},
+      {"tip 0.2 m out", "\"tipPosition\": [-155, 305, 0]", "\"tipPosition\": [-155, 485.1, 0]", HandReject::kDegenerateFinger},
+      {"mcp 0.2 m from the palm", "\"mcpPosition\": [-155, 212, 0]", "\"mcpPosition\": [-155, 212, 200]", HandReject::kDegenerateFinger},
   };
   for (const Edit& e : edits) {
     SCOPED_TRACE(e.what);

@@ -85,10 +85,10 @@ TEST(Cli, DefaultsKeptWhenNotGiven) {
 TEST(Cli, ParsesEveryTypeSeparateValue) {
   Cli cli("prog", "");
   Options o(cli);
-  Args a({"--lab", "a.pbtxt", "--frames", "-7", "--rate", "-2.5e1", "--quiet", "--mesh", "x.obj", "--out", "", "--mesh", "y.obj"});
+  Args a({"--lab", "a.pbtxt", "--frames", "-7", "--rate", "-2.5e1", "--quiet", "--mesh", "x.obj", "--out", "o.txt", "--mesh", "y.obj"});
   cli.parse(a.argc(), a.argv());
   EXPECT_EQ(o.lab, "a.pbtxt");
-  EXPECT_EQ(o.out, "");
+  EXPECT_EQ(o.out, "o.txt");
   EXPECT_EQ(o.frames, -7);
   EXPECT_EQ(o.rate, -25.0);
   EXPECT_TRUE(o.quiet);
@@ -143,6 +143,15 @@ TEST(CliDeathTest, MissingValue) {
   EXPECT_EXIT(parseOrDie({"--lab"}), ::testing::ExitedWithCode(2), oneLineError("--lab: missing value (--lab FILE)"));
   EXPECT_EXIT(parseOrDie({"--rate", "--quiet"}), ::testing::ExitedWithCode(2),
               oneLineError("--rate: missing value (--rate HZ), got option '--quiet'"));
+}
+
+TEST(CliDeathTest, EmptyStringValues) {
+  // `--partition "$UNSET"` must not silently mean "no partition", nor `--json ''` "no report".
+  EXPECT_EXIT(parseOrDie({"--lab", ""}), ::testing::ExitedWithCode(2),
+              oneLineError("--lab: empty value (leave the option out for its default)"));
+  EXPECT_EXIT(parseOrDie({"--out="}), ::testing::ExitedWithCode(2),
+              oneLineError("--out: empty value (leave the option out for its default)"));
+  EXPECT_EXIT(parseOrDie({"--mesh", "a.obj", "--mesh", ""}), ::testing::ExitedWithCode(2), oneLineError("--mesh: empty value"));
 }
 
 TEST(CliDeathTest, FlagTakesNoValue) {
