@@ -424,13 +424,13 @@ int main(int argc, char** argv) {
                static_cast<unsigned long long>(s.opened), static_cast<unsigned long long>(s.refused), static_cast<unsigned long long>(s.sent),
                static_cast<unsigned long long>(s.dropped), static_cast<unsigned long long>(server->inboxDropped()),
                static_cast<unsigned long long>(s.rejected));
-  if (server->httpRefused() + server->pingsUnanswered() + server->overflowClosed() + server->oldProtocolRefused() > 0)
+  if (server->httpRefused() + server->pingsUnanswered() + server->overflowClosed() + server->oldProtocolRefused() + server->badKeyRefused() > 0)
     std::fprintf(stderr,
                  "viewer: network abuse: HTTP requests refused while %d responses were in flight %llu, pings unanswered (queue full) "
-                 "%llu, connections closed for not reading %llu, pre-RFC 6455 handshakes refused %llu\n",
+                 "%llu, connections closed for not reading %llu, pre-RFC 6455 handshakes refused %llu, bad Sec-WebSocket-Key %llu\n",
                  Server::kMaxHttpInFlight, static_cast<unsigned long long>(server->httpRefused()),
                  static_cast<unsigned long long>(server->pingsUnanswered()), static_cast<unsigned long long>(server->overflowClosed()),
-                 static_cast<unsigned long long>(server->oldProtocolRefused()));
+                 static_cast<unsigned long long>(server->oldProtocolRefused()), static_cast<unsigned long long>(server->badKeyRefused()));
   if (synthetic_hand >= 0)
     std::fprintf(stderr, "viewer: synthetic hand '%s': %llu targets published, %llu page commands (%llu rejected)\n", synthetic.c_str(),
                  static_cast<unsigned long long>(synthetic_frame), static_cast<unsigned long long>(synthetic_commands),

@@ -27,6 +27,17 @@ class ConnSink : public Sink {
   WsServer::connection_ptr con_;
 };
 
+/// RFC 6455 4.1: the key is 16 bytes in base64, i.e. 22 base64 characters and "==".
+bool validWebSocketKey(const std::string& k) {
+  if (k.size() != 24 || k.compare(22, 2, "==") != 0) return false;
+  for (std::size_t i = 0; i < 22; ++i) {
+    const char c = k[i];
+    if (!((c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '+' || c == '/')) return false;
+  }
+  // The 22nd character carries 2 bits of data and 4 of padding: one of A, Q, g, w.
+  return std::string("AQgw").find(k[21]) != std::string::npos;
+}
+
 std::string readFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return {};
@@ -78,6 +89,11 @@ Server::Server(const ServerOptions& o) : impl_(std::make_unique<Impl>()), inbox_
     // has no message size limit, so a client that never ends a message grew the viewer without bound.
     if (con->get_request_header("Sec-WebSocket-Version") != "13") {
       ++old_protocol_refused_;
+      return false;
+    }
+    // A key that is not 16 bytes of base64 is not a WebSocket client (RFC 6455 4.2.1: 400).
+    if (!validWebSocketKey(con->get_request_header("Sec-WebSocket-Key"))) {
+      ++bad_key_refused_;
       return false;
     }
     for (const std::string& p : con->get_requested_subprotocols())
@@ -157,7 +173,8 @@ Server::Server(const ServerOptions& o) : impl_(std::make_unique<Impl>()), inbox_
         << ",\"dropped\":" << s.dropped << ",\"superseded\":" << s.superseded << ",\"rejected\":" << s.rejected << ",\"inbox_dropped\":" << inbox_dropped_.load()
         << ",\"client_published\":" << s.client_published << ",\"http_refused\":" << http_refused_.load()
         << ",\"pings_unanswered\":" << pings_unanswered_.load() << ",\"overflow_closed\":" << overflow_closed_.load()
-        << ",\"old_protocol_refused\":" << old_protocol_refused_.load() << ",\"per_client\":[";
+        << ",\"old_protocol_refused\":" << old_protocol_refused_.load() << ",\"bad_key_refused\":" << bad_key_refused_.load()
+        << ",\"per_client\":[";
       for (std::size_t i = 0; i < s.per_client.size(); ++i)
         j << (i ? "," : "") << "{\"id\":" << s.per_client[i].id << ",\"sent\":" << s.per_client[i].sent
           << ",\"dropped\":" << s.per_client[i].dropped << ",\"superseded\":" << s.per_client[i].superseded

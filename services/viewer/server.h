@@ -65,12 +65,13 @@ class Server {
   /// kMaxHttpInFlight responses were still being sent (clients that never read them held ~4.6 MB
   /// each), pings left unanswered while a client's queue was full (websocketpp queues a pong per
   /// ping, unbounded), WebSocket connections closed because their queue grew past twice the
-  /// largest message allowed anyway, and handshakes of protocol versions before RFC 6455 (their
-  /// reader has no size limit).
+  /// largest message allowed anyway, handshakes of protocol versions before RFC 6455 (their
+  /// reader has no size limit), and handshakes whose Sec-WebSocket-Key is not 16 bytes of base64.
   std::uint64_t httpRefused() const { return http_refused_.load(); }
   std::uint64_t pingsUnanswered() const { return pings_unanswered_.load(); }
   std::uint64_t overflowClosed() const { return overflow_closed_.load(); }
   std::uint64_t oldProtocolRefused() const { return old_protocol_refused_.load(); }
+  std::uint64_t badKeyRefused() const { return bad_key_refused_.load(); }
   static constexpr int kMaxHttpInFlight = 16;
 
   struct Impl;
@@ -94,7 +95,8 @@ class Server {
   std::map<std::string, std::pair<std::string, std::shared_ptr<const std::string>>> routes_;
   Hub::Stats stats_copy_;
   std::atomic<std::uint64_t> inbox_dropped_{0}, http_requests_{0}, http_not_found_{0};
-  std::atomic<std::uint64_t> http_refused_{0}, pings_unanswered_{0}, overflow_closed_{0}, old_protocol_refused_{0};
+  std::atomic<std::uint64_t> http_refused_{0}, pings_unanswered_{0}, overflow_closed_{0}, old_protocol_refused_{0},
+      bad_key_refused_{0};
   std::atomic<bool> stopped_{false};
 };
 

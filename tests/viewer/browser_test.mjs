@@ -602,6 +602,23 @@ async function caseAbuse() {
     setTimeout(() => resolve('timeout'), 5000);
   });
   check(oldProto === '400', `a pre-RFC 6455 (hybi-00) handshake is refused (${oldProto})`);
+  // RFC 6455 handshakes whose key is not 16 bytes of base64: refused with 400; the valid key of
+  // the RFC's example is answered 101 (the same request otherwise).
+  const handshake = (key) => new Promise((resolve) => {
+    const s = net.connect(v.port, '127.0.0.1');
+    let b = '';
+    s.on('error', () => resolve('error'));
+    s.on('data', (d) => { b += d.toString('latin1'); if (b.includes('\r\n')) { s.destroy(); resolve(b.split(' ')[1]); } });
+    s.on('connect', () => s.write('GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n' +
+      `Sec-WebSocket-Key: ${key}\r\nSec-WebSocket-Version: 13\r\n\r\n`));
+    setTimeout(() => resolve('timeout'), 5000);
+  });
+  const keys = { good: 'dGhlIHNhbXBsZSBub25jZQ==', short: 'abc', long: 'x'.repeat(4000), notBase64: 'dGhlIHNhbXBsZSBub25j*Q==',
+    badPadding: 'dGhlIHNhbXBsZSBub25jZR==' };
+  const answers = {};
+  for (const [name, key] of Object.entries(keys)) answers[name] = await handshake(key);
+  check(answers.good === '101' && answers.short === '400' && answers.long === '400' && answers.notBase64 === '400' &&
+    answers.badPadding === '400', `Sec-WebSocket-Key checked: ${JSON.stringify(answers)}`);
   const escape = await fetch(v.url + '../../../etc/passwd').then((x) => x.status).catch(() => 0);
   const escape2 = await fetch(v.url + 'mesh/..%2f..%2fetc%2fpasswd').then((x) => x.status).catch(() => 0);
   // 3. Twenty clients from the browser connecting, subscribing and leaving.
