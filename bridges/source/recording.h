@@ -26,6 +26,10 @@ struct LoadedRecording {
   std::string format;                ///< "leap", "dtrack", "raw"
   std::string rejections;            ///< one line: what was dropped, by reason
   bool has_right = false, has_left = false;
+  /// Frames without hands put into pauses of the timestamps (intervals of at least 0.1 s and
+  /// more than twice the median: a tracker that wrote nothing while it saw no hand), and how many
+  /// pauses; included in frames and in the rate.
+  std::uint64_t filled_frames = 0, pauses = 0;
 };
 
 /// Loads every frame of a recording file of any supported format (detected by content).

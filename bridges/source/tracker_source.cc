@@ -137,6 +137,55 @@ double meanRate(const std::vector<TrackerFrame>& frames) {
   return dt > 0.0 ? static_cast<double>(frames.size() - 1) / dt : 0.0;
 }
 
+/// A tracker that writes nothing while no hand is seen leaves a pause in the timestamps. Replayed
+/// frame after frame, the hand would be stepped through it as if one period had passed, never
+/// lost (no re-acquisition), and the mean rate would be wrong. So a pause (an interval of at least
+/// kPauseS and more than twice the median one) is filled with frames without hands at the median
+/// period, as a tracker that reports every frame would have sent them. Dropped frames (a Leap
+/// recording's 2–3 periods) are shorter than the pipeline's 0.1 s loss, and are left as they are.
+struct PauseFill {
+  std::uint64_t pauses = 0, frames = 0;
+};
+constexpr double kPauseS = 0.1;
+constexpr std::uint64_t kMaxFilledFrames = 360000;  // an hour at 100 Hz
+
+PauseFill fillPauses(std::vector<TrackerFrame>* frames, const std::string& path) {
+  PauseFill fill;
+  if (frames->size() < 3) return fill;
+  std::vector<std::int64_t> iv;
+  iv.reserve(frames->size() - 1);
+  for (size_t i = 1; i < frames->size(); ++i) iv.push_back((*frames)[i].timestamp_us - (*frames)[i - 1].timestamp_us);
+  std::nth_element(iv.begin(), iv.begin() + static_cast<std::ptrdiff_t>(iv.size() / 2), iv.end());
+  const std::int64_t period = iv[iv.size() / 2];
+  if (period <= 0) return fill;
+  const std::int64_t pause = std::max<std::int64_t>(static_cast<std::int64_t>(kPauseS * 1e6), 2 * period + 1);
+  std::vector<TrackerFrame> out;
+  for (size_t i = 0; i < frames->size(); ++i) {
+    if (i > 0) {
+      const std::int64_t t0 = (*frames)[i - 1].timestamp_us, gap = (*frames)[i].timestamp_us - t0;
+      if (gap >= pause) {
+        const std::uint64_t missing = static_cast<std::uint64_t>((gap + period / 2) / period) - 1;
+        if (fill.frames + missing > kMaxFilledFrames)
+          throw SourceError(path + ": pauses in the timestamps (the last at " + std::to_string(t0) + " us, " +
+                            std::to_string(gap / 1000) + " ms) would take more than " + std::to_string(kMaxFilledFrames) +
+                            " frames without hands at the recording's period of " + std::to_string(period) +
+                            " us to replay; cut the recording");
+        if (out.empty()) out.assign(frames->begin(), frames->begin() + static_cast<std::ptrdiff_t>(i));
+        for (std::uint64_t k = 1; k <= missing; ++k) {
+          TrackerFrame f;
+          f.timestamp_us = t0 + static_cast<std::int64_t>(k) * gap / static_cast<std::int64_t>(missing + 1);
+          out.push_back(std::move(f));
+        }
+        ++fill.pauses;
+        fill.frames += missing;
+      }
+    }
+    if (fill.pauses) out.push_back(std::move((*frames)[i]));
+  }
+  if (fill.pauses) frames->swap(out);
+  return fill;
+}
+
 /// A replay of frames decoded up front (every file format).
 class FrameReplay : public TrackerSource {
  public:
@@ -147,6 +196,7 @@ class FrameReplay : public TrackerSource {
     for (TrackerFrame& f : frames_) plausible.apply(&f);
     plausible.addTo(&base_);
     if (frames_.empty()) throw SourceError(path_ + ": no usable frames (" + base_.detail + ")");
+    fill_ = fillPauses(&frames_, path_);
     rate_ = meanRate(frames_);
     if (!(rate_ > 1.0 && rate_ <= 20000.0)) {  // up to 20 kHz: 10 kHz streams (dt 0.1 ms) are real
       char buf[200];
@@ -165,8 +215,12 @@ class FrameReplay : public TrackerSource {
       for (const TrackedHand& h : f.hands) (h.right ? right_ : left_) = true;
   }
   std::string describe() const override {
-    char buf[96];
-    std::snprintf(buf, sizeof buf, " (%zu frames, %.2f Hz)", end_, rate_);
+    char buf[160];
+    if (fill_.pauses)
+      std::snprintf(buf, sizeof buf, " (%zu frames, of them %llu without hands filled into %llu pause(s) of the timestamps, %.2f Hz)",
+                    end_, static_cast<unsigned long long>(fill_.frames), static_cast<unsigned long long>(fill_.pauses), rate_);
+    else
+      std::snprintf(buf, sizeof buf, " (%zu frames, %.2f Hz)", end_, rate_);
     return what_ + " " + path_ + buf;
   }
   double nominalRate() const override { return rate_; }
@@ -183,8 +237,10 @@ class FrameReplay : public TrackerSource {
     return s;
   }
   const std::vector<TrackerFrame>& all() const { return frames_; }
+  const PauseFill& filled() const { return fill_; }
 
  private:
+  PauseFill fill_;
   std::string what_, path_;
   std::vector<TrackerFrame> frames_;
   SourceStats base_;
@@ -563,6 +619,8 @@ LoadedRecording loadRecording(const std::string& path, const SourceOptions& opti
   out.format = format;
   out.mean_rate_hz = r->nominalRate();
   out.rejections = r->stats().detail;
+  out.filled_frames = r->filled().frames;
+  out.pauses = r->filled().pauses;
   std::size_t n = 0;
   for (const TrackerFrame& f : out.frames)
     for (const TrackedHand& h : f.hands) {

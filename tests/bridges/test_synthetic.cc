@@ -25,6 +25,12 @@ using namespace godhand;
 
 namespace {
 std::string dataPath(const std::string& f) { return std::string(GODHAND_TEST_DATA_DIR) + "/synthetic/" + f; }
+std::string readTextFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
 }  // namespace
 
 TEST(Synthetic, ParseErrorsNameTheLine) {
@@ -259,5 +265,82 @@ TEST(Synthetic, GraspBoxTwoHandsCloseFromOppositeSides) {
     std::vector<Pose> t;
     std::vector<unsigned char> d;
     EXPECT_EQ(rt.targets(*bridges::handOfSide(a.frames[150], right), &t, &d), 0) << m;
+  }
+}
+
+// A tracker that writes nothing while it sees no hand leaves a pause in the timestamps. The replay
+// fills it with frames without hands at the recording's period, so that the hand is lost (and
+// re-acquired after 0.1 s) and the rate is the tracker's, exactly as if the tracker had written
+// the empty frames; a recording without such pauses is replayed unchanged.
+TEST(Sources, APauseInTheTimestampsIsReplayedAsFramesWithoutHands) {
+  const std::string src = std::string(GODHAND_DEPLOY_DIR) + "/recordings/pinch.json";
+  nlohmann::json j = nlohmann::json::parse(readTextFile(src));
+  auto& frames = j["frames"];
+  ASSERT_GT(frames.size(), 200u);
+  const double t99 = frames[99]["timestamp"].get<double>(), t150 = frames[150]["timestamp"].get<double>();
+  frames.erase(frames.begin() + 100, frames.begin() + 150);  // 50 frames, ~0.44 s, not written
+  const std::string gapped = ::testing::TempDir() + "/pinch_pause.json";
+  {
+    std::ofstream out(gapped);
+    out << j.dump();
+  }
+  const bridges::LoadedRecording whole = bridges::loadRecording(src);
+  const bridges::LoadedRecording cut = bridges::loadRecording(gapped);
+  EXPECT_EQ(whole.filled_frames, 0u);  // Leap's own dropped frames (2–3 periods) are not pauses
+  EXPECT_EQ(whole.pauses, 0u);
+  EXPECT_EQ(cut.pauses, 1u);
+  // round(gap / median period) − 1 frames: the 50 taken out, give or take the recording's jitter.
+  EXPECT_NEAR(static_cast<double>(cut.filled_frames), 50.0, 3.0);
+  EXPECT_EQ(cut.frames.size(), whole.frames.size() - 50 + cut.filled_frames);
+  size_t empty = 0;
+  for (size_t i = 0; i < cut.frames.size(); ++i) {
+    if (i > 0) EXPECT_GT(cut.frames[i].timestamp_us, cut.frames[i - 1].timestamp_us) << i;
+    if (cut.frames[i].hands.empty()) {
+      ++empty;
+      EXPECT_GT(cut.frames[i].timestamp_us, static_cast<std::int64_t>(t99)) << i;
+      EXPECT_LT(cut.frames[i].timestamp_us, static_cast<std::int64_t>(t150)) << i;
+    }
+  }
+  EXPECT_EQ(empty, cut.filled_frames);
+  EXPECT_NEAR(cut.mean_rate_hz, whole.mean_rate_hz, 0.02 * whole.mean_rate_hz);
+  // Through the pipeline: the hand is lost for the pause and re-acquired after it (before: stepped
+  // straight on, as if one period had passed).
+  const Scene scene = loadScene(dataPath("table.pbtxt"));
+  const HandModel right = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  PipelineParams params;
+  params.step.dt = 1.0 / cut.mean_rate_hz;
+  Pipeline pipe(scene, {&right}, params, physicsParamsFor(cut.mean_rate_hz, 240.0));
+  const leap::Retargeter rt(right);
+  std::vector<Pose> tg;
+  std::vector<unsigned char> has;
+  for (const bridges::TrackerFrame& f : cut.frames) {
+    const bridges::TrackedHand* h = bridges::handOfSide(f, true);
+    HandInput in;
+    if (h) {
+      rt.targets(*h, &tg, &has);
+      in = {true, tg.data(), has.data()};
+    }
+    pipe.step({in});
+  }
+  EXPECT_EQ(pipe.counters().reacquisitions, 1u);
+}
+
+TEST(Sources, PausesThatWouldTakeMoreThanAnHourOfFramesAreRefused) {
+  const std::string src = std::string(GODHAND_DEPLOY_DIR) + "/recordings/pinch.json";
+  nlohmann::json j = nlohmann::json::parse(readTextFile(src));
+  auto& frames = j["frames"];
+  // Ten days of nothing after frame 200 (at ~114 Hz: ~10^8 frames to fill).
+  for (size_t i = 200; i < frames.size(); ++i)
+    frames[i]["timestamp"] = frames[i]["timestamp"].get<double>() + 864e9;
+  const std::string path = ::testing::TempDir() + "/pinch_ten_days.json";
+  {
+    std::ofstream out(path);
+    out << j.dump();
+  }
+  try {
+    bridges::loadRecording(path);
+    ADD_FAILURE() << "a ten-day pause was filled";
+  } catch (const bridges::SourceError& e) {
+    EXPECT_NE(std::string(e.what()).find("more than 360000 frames without hands"), std::string::npos) << e.what();
   }
 }
