@@ -39,6 +39,14 @@ std::string jsonlFormat(const std::string& first_line) {
   return "";
 }
 
+std::string jsonlFrameWithoutHeader(const std::string& first_line) {
+  const json j = json::parse(first_line, nullptr, false);
+  if (!j.is_object() || !j.contains("hands")) return "";
+  if (j.contains("time_ns")) return "OpenXR";
+  if (j.contains("time_us")) return "MediaPipe";
+  return "";
+}
+
 std::string JsonlRecording::summary() const {
   std::string s = format + " lines " + std::to_string(frames.size()) + "/" + std::to_string(lines) + " kept, hands " +
                   std::to_string(hands_kept) + (bodies_kept ? ", 6-DOF bodies " + std::to_string(bodies_kept) : std::string()) +
@@ -73,7 +81,12 @@ JsonlRecording readJsonl(const std::string& text, const std::string& name, const
     if (!j.is_object()) { c.add("line: parse error"); continue; }
     const auto t = j.find(xr ? "time_ns" : "time_us");
     const auto hands = j.find("hands");
-    if (t == j.end() || !t->is_number_integer() || hands == j.end() || !hands->is_array()) { c.add("line: parse error"); continue; }
+    // (Each reason names what is wrong: "parse error" alone left a user guessing.)
+    if (t == j.end() || !t->is_number_integer()) {
+      c.add(xr ? "line: time_ns missing or not an integer" : "line: time_us missing or not an integer");
+      continue;
+    }
+    if (hands == j.end() || !hands->is_array()) { c.add("line: hands missing or not an array"); continue; }
     const std::int64_t tu = xr ? t->get<std::int64_t>() / 1000 : t->get<std::int64_t>();
     if (have_t && tu <= last_t) { c.add("line: stale/duplicate time"); continue; }
     leap::TrackerFrame f;
@@ -82,25 +95,26 @@ JsonlRecording readJsonl(const std::string& text, const std::string& name, const
     int index = 0;
     for (const json& h : *hands) {
       ++index;
-      if (!h.is_object()) { c.add("hand: parse error"); continue; }
+      if (!h.is_object()) { c.add("hand: not an object"); continue; }
+      const char* bad_side = xr ? "hand: side missing or not \"left\"/\"right\"" : "hand: handedness missing or not \"Left\"/\"Right\"";
       const auto side = h.find(xr ? "side" : "handedness");
-      if (side == h.end() || !side->is_string()) { c.add("hand: parse error"); continue; }
+      if (side == h.end() || !side->is_string()) { c.add(bad_side); continue; }
       const std::string s = side->get<std::string>();
       bool right;
       if (s == "right" || s == "Right") right = true;
       else if (s == "left" || s == "Left") right = false;
-      else { c.add("hand: parse error"); continue; }
+      else { c.add(bad_side); continue; }
       double conf = 1.0;
       const auto cf = h.find(xr ? "confidence" : "score");
       if (cf != h.end()) {
         if (cf->is_null()) { c.add("hand: NaN/Inf"); continue; }
-        if (!cf->is_number()) { c.add("hand: parse error"); continue; }
+        if (!cf->is_number()) { c.add(xr ? "hand: confidence not a number" : "hand: score not a number"); continue; }
         conf = cf->get<double>();
       }
       int id = right ? 1 : 0;
       const auto idj = h.find("id");
       if (idj != h.end()) {
-        if (!idj->is_number_integer()) { c.add("hand: parse error"); continue; }
+        if (!idj->is_number_integer()) { c.add("hand: id not an integer"); continue; }
         id = idj->get<int>();
       }
       leap::TrackedHand th;
@@ -110,7 +124,8 @@ JsonlRecording readJsonl(const std::string& text, const std::string& name, const
         const auto act = h.find("active");
         if (act != h.end() && act->is_boolean() && !act->get<bool>()) { c.add("hand: not active (untracked)"); continue; }
         const auto js = h.find("joints");
-        if (js == h.end() || !js->is_array() || js->size() != kXrJoints) { c.add("hand: parse error"); continue; }
+        const char* bad_joints = "hand: joints not 26 [px,py,pz,qx,qy,qz,qw,radius,flags]";
+        if (js == h.end() || !js->is_array() || js->size() != kXrJoints) { c.add(bad_joints); continue; }
         std::array<XrJoint, kXrJoints> joints;
         int bad = 0;
         for (size_t k = 0; k < kXrJoints && !bad; ++k) {
@@ -122,11 +137,12 @@ JsonlRecording readJsonl(const std::string& text, const std::string& name, const
           if (!bad && (v[8] < 0 || v[8] > 15 || std::floor(v[8]) != v[8])) bad = 1;
           joints[k].flags = bad ? 0u : static_cast<std::uint32_t>(v[8]);
         }
-        if (bad) { c.add(bad == 2 ? "hand: NaN/Inf" : "hand: parse error"); continue; }
+        if (bad) { c.add(bad == 2 ? "hand: NaN/Inf" : bad_joints); continue; }
         ok = handFromOpenXr(joints, right, conf, id, X_WT, &th, &why);
       } else {
         const auto lm = h.find("landmarks");
-        if (lm == h.end() || !lm->is_array() || lm->size() != kLandmarks) { c.add("hand: parse error"); continue; }
+        const char* bad_landmarks = "hand: landmarks not 21 [x,y,z] (or origin not [x,y,z])";
+        if (lm == h.end() || !lm->is_array() || lm->size() != kLandmarks) { c.add(bad_landmarks); continue; }
         double o[3] = {0, 0, 0};
         const auto org = h.find("origin");
         int bad = org == h.end() ? 0 : numbers(*org, 3, o);
@@ -137,7 +153,7 @@ JsonlRecording readJsonl(const std::string& text, const std::string& name, const
           // camera (x right, y down, z forward) -> T (x right, y forward, z up)
           p[k] = Vec3(v[0] + o[0], v[2] + o[2], -(v[1] + o[1]));
         }
-        if (bad) { c.add(bad == 2 ? "hand: NaN/Inf" : "hand: parse error"); continue; }
+        if (bad) { c.add(bad == 2 ? "hand: NaN/Inf" : bad_landmarks); continue; }
         ok = handFromLandmarks(p, right, conf, id, X_WT, &th, &why);
       }
       if (!ok) { c.add(std::string("hand: ") + reasonName(why)); continue; }

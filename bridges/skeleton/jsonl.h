@@ -35,6 +35,9 @@ struct JsonlRecording {
 
 /// "openxr", "mediapipe" or "" from a file's first line.
 std::string jsonlFormat(const std::string& first_line);
+/// "OpenXR" or "MediaPipe" when the line is a frame of that format (an object with "hands" and
+/// "time_ns" / "time_us"), i.e. a file whose header line is missing; "" otherwise.
+std::string jsonlFrameWithoutHeader(const std::string& first_line);
 
 /// Parses a whole file's text. Throws JsonlError ("NAME: reason") on a bad header.
 JsonlRecording readJsonl(const std::string& text, const std::string& name, const Pose& X_WT = Pose());

@@ -31,16 +31,21 @@ std::int64_t systemNowNs() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
+constexpr const char* kUtf8Bom = "\xEF\xBB\xBF";
+
 std::string readFile(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) throw SourceError(path + ": cannot open (" + std::strerror(errno) + ")");
   std::ostringstream ss;
   ss << in.rdbuf();
   if (in.bad()) throw SourceError(path + ": read error");
-  return ss.str();
+  std::string text = ss.str();
+  if (text.compare(0, 3, kUtf8Bom) == 0) text.erase(0, 3);  // a text editor's byte-order mark
+  return text;
 }
 
-/// Drops / re-sides hands by the tracker-id map; returns how many were dropped.
+/// Keeps the hands the tracker-id map lists with their own side (the map selects; it does not
+/// re-side a hand: its skeleton is that of its side); returns how many were dropped.
 std::uint64_t applyHandSides(TrackerFrame* f, const SourceOptions& o) {
   if (o.hand_sides.empty()) return 0;
   std::uint64_t dropped = 0;
@@ -68,17 +73,45 @@ class Plausibility {
   explicit Plausibility(const SourceOptions& o) : o_(o), X_TW_(o.X_WT.inverse()) {}
   void apply(TrackerFrame* f) {
     std::vector<TrackedHand> kept;
-    for (const TrackedHand& h : f->hands) {
-      // The volume is the tracker's: a box about its origin, in its frame (a world whose origin
-      // is kilometres away, as CAD and site coordinates are, keeps every hand).
-      auto within = [&](const Vec3& p_W) { return (X_TW_ * p_W).cwiseAbs().maxCoeff() <= o_.max_abs_position_m; };
-      bool inside = within(h.X_W_palm.p);
+    // The volume is the tracker's: a box about its origin, in its frame (a world whose origin
+    // is kilometres away, as CAD and site coordinates are, keeps every hand).
+    auto within = [&](const Vec3& p_W) { return (X_TW_ * p_W).cwiseAbs().maxCoeff() <= o_.max_abs_position_m; };
+    std::vector<unsigned char> inside(f->hands.size(), 1);
+    for (size_t i = 0; i < f->hands.size(); ++i) {
+      const TrackedHand& h = f->hands[i];
+      bool in = within(h.X_W_palm.p);
       for (const auto& finger : h.joints_W)
-        for (const Vec3& j : finger) inside = inside && within(j);
-      if (!inside) {
-        ++outside;
-        continue;
+        for (const Vec3& j : finger) in = in && within(j);
+      inside[i] = in;
+      if (!in) ++outside;
+    }
+    // Two hands of one side in a frame (a second user, or a tracker's mix-up): the one nearest
+    // that side's last hand goes on (the most confident where there is none yet); the others are
+    // counted as what they are, not as jumps of the one hand.
+    std::vector<unsigned char> chosen(inside);
+    for (const bool right : {false, true}) {
+      int best = -1, n = 0;
+      const Last& l = last_[right ? 1 : 0];
+      for (size_t i = 0; i < f->hands.size(); ++i) {
+        const TrackedHand& h = f->hands[i];
+        if (!inside[i] || h.right != right) continue;
+        ++n;
+        if (best < 0) {
+          best = static_cast<int>(i);
+          continue;
+        }
+        const TrackedHand& b = f->hands[static_cast<size_t>(best)];
+        const bool better = l.valid ? (h.X_W_palm.p - l.p).norm() < (b.X_W_palm.p - l.p).norm() : h.confidence > b.confidence;
+        if (better) best = static_cast<int>(i);
       }
+      if (n < 2) continue;
+      same_side += static_cast<std::uint64_t>(n - 1);
+      for (size_t i = 0; i < f->hands.size(); ++i)
+        if (inside[i] && f->hands[i].right == right && static_cast<int>(i) != best) chosen[i] = 0;
+    }
+    for (size_t i = 0; i < f->hands.size(); ++i) {
+      if (!chosen[i]) continue;
+      const TrackedHand& h = f->hands[i];
       Last& l = last_[h.right ? 1 : 0];
       const std::int64_t dt_us = f->timestamp_us - l.t_us;
       // (A frame with the last one's timestamp counts as 1 ms later: a jump there is not waved
@@ -116,9 +149,13 @@ class Plausibility {
       s->by_reason.emplace_back("hand jump beyond the speed limit", jumps);
       s->detail += "; hand jumps beyond the speed limit " + std::to_string(jumps);
     }
-    s->rejected += outside + jumps;
+    if (same_side) {
+      s->by_reason.emplace_back("second hand of a side in a frame (another user?)", same_side);
+      s->detail += "; second hands of a side in one frame (another user? --hand-map picks by id) " + std::to_string(same_side);
+    }
+    s->rejected += outside + jumps + same_side;
   }
-  std::uint64_t outside = 0, jumps = 0, bodies_outside = 0;
+  std::uint64_t outside = 0, jumps = 0, bodies_outside = 0, same_side = 0;
 
  private:
   struct Last {
@@ -267,12 +304,12 @@ void addDecoderStats(const dtrack::Decoder& d, std::uint64_t side_dropped, Sourc
   s->received = d.received();
   s->rejected = d.rejectedTotal() + side_dropped;
   s->detail = d.summary();
-  if (side_dropped) s->detail += "; hands not in the hand map " + std::to_string(side_dropped);
+  if (side_dropped) s->detail += "; hands not in the hand map (id, or not its side) " + std::to_string(side_dropped);
   s->by_reason.clear();
   for (int r = 0; r < static_cast<int>(dtrack::Reject::kCount); ++r)
     if (d.rejected(static_cast<dtrack::Reject>(r)))
       s->by_reason.emplace_back(dtrack::reasonName(static_cast<dtrack::Reject>(r)), d.rejected(static_cast<dtrack::Reject>(r)));
-  if (side_dropped) s->by_reason.emplace_back("hand not in the hand map", side_dropped);
+  if (side_dropped) s->by_reason.emplace_back("hand not in the hand map (id, or not its side)", side_dropped);
 }
 
 std::unique_ptr<FrameReplay> leapReplay(const std::string& path, const SourceOptions& o) {
@@ -290,7 +327,7 @@ std::unique_ptr<FrameReplay> leapReplay(const std::string& path, const SourceOpt
   s.received = r.frames_in;
   s.rejected = r.frames_rejected_total() + r.hands_rejected_total() + dropped;
   s.detail = r.summary();
-  if (dropped) s.detail += "; hands not in the hand map " + std::to_string(dropped);
+  if (dropped) s.detail += "; hands not in the hand map (id, or not its side) " + std::to_string(dropped);
   for (int i = 0; i < static_cast<int>(leap::FrameReject::kCount); ++i)
     if (r.frameRejects(static_cast<leap::FrameReject>(i)))
       s.by_reason.emplace_back(std::string("frame: ") + leap::reasonName(static_cast<leap::FrameReject>(i)),
@@ -299,7 +336,7 @@ std::unique_ptr<FrameReplay> leapReplay(const std::string& path, const SourceOpt
     if (r.handRejects(static_cast<leap::HandReject>(i)))
       s.by_reason.emplace_back(std::string("hand: ") + leap::reasonName(static_cast<leap::HandReject>(i)),
                                r.handRejects(static_cast<leap::HandReject>(i)));
-  if (dropped) s.by_reason.emplace_back("hand not in the hand map", dropped);
+  if (dropped) s.by_reason.emplace_back("hand not in the hand map (id, or not its side)", dropped);
   return std::make_unique<FrameReplay>("leap replay", path, std::move(frames), std::move(s), o);
 }
 
@@ -344,8 +381,8 @@ std::unique_ptr<FrameReplay> jsonlReplay(const std::string& path, const SourceOp
   for (const auto& [k, v] : r.by_reason) s.rejected += v;
   s.detail = r.summary();
   if (dropped) {
-    s.detail += "; hands not in the hand map " + std::to_string(dropped);
-    s.by_reason.emplace_back("hand not in the hand map", dropped);
+    s.detail += "; hands not in the hand map (id, or not its side) " + std::to_string(dropped);
+    s.by_reason.emplace_back("hand not in the hand map (id, or not its side)", dropped);
     s.rejected += dropped;
   }
   return std::make_unique<FrameReplay>(r.format + " replay", path, std::move(r.frames), std::move(s), o);
@@ -371,7 +408,7 @@ std::unique_ptr<FrameReplay> openReplay(const std::string& path, const std::stri
     for (size_t i = 0; i < g.by_reason.size(); ++i)
       s.detail += (i ? ", " : "") + g.by_reason[i].first + " " + std::to_string(g.by_reason[i].second);
     s.detail += g.by_reason.empty() ? "none)" : ")";
-    if (dropped) s.by_reason.emplace_back("hand not in the hand map", dropped);
+    if (dropped) s.by_reason.emplace_back("hand not in the hand map (id, or not its side)", dropped);
     return std::make_unique<FrameReplay>("synthetic", path, std::move(g.frames), std::move(s), o);
   }
   if (format == "dtrack") return dtrackReplay(path, dtrackFileRecords(path), o, "dtrack replay");
@@ -499,14 +536,24 @@ std::string detectFormat(const std::string& path) {
   if (!in) throw SourceError(path + ": cannot open (" + std::strerror(errno) + ")");
   char buf[4096] = {};
   in.read(buf, sizeof buf);
-  const std::string head(buf, static_cast<size_t>(in.gcount()));
+  std::string head(buf, static_cast<size_t>(in.gcount()));
+  if (head.compare(0, 3, kUtf8Bom) == 0) head.erase(0, 3);  // every reader skips it too
   size_t i = 0;
   while (i < head.size() && std::isspace(static_cast<unsigned char>(head[i]))) ++i;
-  if (i < head.size() && head[i] == '{') {
+  if (i == head.size()) throw SourceError(path + (head.empty() ? ": empty file" : ": only white space"));
+  if (head[i] == '{') {
     const size_t nl = head.find('\n');
     if (nl != std::string::npos) {
-      const std::string f = skeleton::jsonlFormat(head.substr(0, nl));
+      const std::string first = head.substr(0, nl);
+      const std::string f = skeleton::jsonlFormat(first);
       if (!f.empty()) return f;
+      // A frame where the header belongs: JSON Lines whose header line is missing (read as Leap
+      // JSON it fails on line 2, which says nothing about the cause).
+      const std::string frame = skeleton::jsonlFrameWithoutHeader(first);
+      if (!frame.empty())
+        throw SourceError(path + ": the first line is a frame of " + frame +
+                          " JSON Lines: the header line is missing (first line {\"format\": \"" +
+                          (frame == "OpenXR" ? "godhand-openxr-hands" : "godhand-mediapipe-world") + "\", \"version\": 1})");
     }
     return "leap";
   }

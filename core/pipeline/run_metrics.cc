@@ -239,6 +239,14 @@ RunSummary RunMetrics::summary() const {
                       " of its " + std::to_string(s.tracked) + " tracked frames";
     }
   }
+  // No hand tracked in any frame (a lab of one left cluster and a right-hand recording): nothing
+  // was measured, which is no result. (One cluster of a two-hand lab idle under a one-hand
+  // recording is a run of the other hand: its summary line says "not measured".)
+  if (out.failure.empty() && !out.hands.empty() && all.tracked == 0) {
+    std::string names;
+    for (const HandSummary& s : out.hands) names += (names.empty() ? "'" : ", '") + s.name + "'";
+    out.failure = "no hand was ever tracked (" + names + ": no frame of the source had a hand of their side; wrong side, hand map or recording?)";
+  }
   all.free_tracking_error_m = spreadOf(free_all);
   all.model_error_m = spreadOf(model_all);
   all.excess_lag_m = spreadOf(lag_all);

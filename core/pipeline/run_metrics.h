@@ -104,8 +104,8 @@ struct HandSummary {
 struct RunSummary {
   std::vector<HandSummary> hands;
   HandSummary all;                     ///< every hand's frames together
-  /// Why the run is not a plausible run of every hand (empty if it is): a hand that never
-  /// started, or that was held or unstarted in most of its tracked frames.
+  /// Why the run is not a plausible run of every hand (empty if it is): no hand ever tracked, a
+  /// hand that never started, or that was held or unstarted in most of its tracked frames.
   std::string failure;
 };
 

@@ -31,6 +31,7 @@
 #endif
 #include "runtime/trace_env.h"
 #include "leap/leap_recording.h"
+#include "source/live.h"
 #include "source/recording.h"
 #include "pipeline/run_metrics.h"
 #include "pipeline/run_metrics_json.h"
@@ -50,7 +51,7 @@ const char* kUsage =
     "usage: godhand-bench --recording FILE [--scene FILE|none | --mesh FILE[:SIZE_M] ...]\n"
     "                     [--hand-model FILE] [--left-hand-model FILE] [--tool MODEL:BODY] [--solver exact|pgs]\n"
     "                     [--pgs-iterations N] [--substeps N] [--threads N] [--frames N] [--no-physics]\n"
-    "                     [--json OUT] [--poses OUT.csv] [--tracker-pose POSE] [--hand-sides MAP] [--quiet] [--check]\n"
+    "                     [--json OUT] [--poses OUT.csv] [--tracker-pose POSE] [--hand-map MAP] [--quiet] [--check]\n"
     "       godhand-bench --compare mujoco --recording FILE [--mesh FILE[:SIZE_M] ... | --scene FILE --no-physics]\n"
     "                     [--mujoco-timestep S] [--mujoco-weld-timeconst S] [--mujoco-contact-timeconst S] [--json OUT]\n"
     "       godhand-bench --sweep GRID.pbtxt --recording FILE [--scene FILE|none | --mesh FILE[:SIZE_M] ...]\n"
@@ -61,7 +62,8 @@ const char* kUsage =
     "them the plausibility of the motion against a free twin (the same hand and targets in an\n"
     "empty scene): excess lag, frozen windows, stuck frames (METHOD.md section 5).\n"
     "  --recording FILE      tracker recording, any supported format (detected by content): Leap\n"
-    "                        Motion JSON, DTrack datagrams (.dtrack), godhand raw recordings\n"
+    "                        Motion JSON, DTrack datagrams (.dtrack), OpenXR / MediaPipe JSON Lines, Aria\n"
+    "                        MPS CSV, synthetic scripts, godhand raw recordings (bridges/README.md)\n"
     "  --scene FILE|none     scene file (protobuf text, idl/scene.proto); default deploy/scenes/default.pbtxt;\n"
     "                        none: no objects (the free twin run)\n"
     "  --mesh FILE[:SIZE_M][@X,Y,Z]\n"
@@ -115,7 +117,13 @@ const char* kUsage =
     "  --contact-margin M    the solver keeps contacts this far apart, m (default 1e-4)\n"
     "  --push-out B          share of a contact's deficit under the margin made good per step (default 0.5)\n"
     "  --tracker-pose POSE   tracker to world: x,y,z[,rx,ry,rz degrees | ,qw,qx,qy,qz] (default identity)\n"
-    "  --hand-sides MAP      tracker hand id -> side, e.g. 0:left,1:right (DTrack)\n"
+    "  --tracker-units U, --tracker-up A, --palm-offset F,T,P\n"
+    "                        DTrack (files and raw recordings of live DTrack): the room's units mm|cm|m\n"
+    "                        (default mm), its up axis z|y (default z), the palm centre from the hand target\n"
+    "                        (godhand-ingest's options and the lab's tracker { }: give a raw recording the\n"
+    "                        calibration of the run that recorded it)\n"
+    "  --hand-map MAP        tracker hand id -> side, e.g. 0:left,1:right; other ids dropped, counted\n"
+    "                        (--hand-sides is the same)\n"
     "  --tracking-volume M   hands with a coordinate beyond M m of the tracker are dropped, counted (default 50)\n"
     "  --max-speed MPS       palm jumps faster than this are dropped, counted (default 30 m/s)\n"
     "  --quiet               no progress lines\n"
@@ -150,7 +158,8 @@ std::string usageText() {
 }
 
 struct Args {
-  std::string recording, scene, json, poses, tracker_pose, hand_sides;
+  std::string recording, scene, json, poses;
+  bridges::CalibrationText calibration;  ///< --tracker-*, --hand-map, --palm-offset, --tracking-volume, --max-speed
   std::vector<std::string> meshes;
   std::string right_model = std::string(GODHAND_DEPLOY_DIR) + "/models/hand16_right.pbtxt";
   std::string left_model = std::string(GODHAND_DEPLOY_DIR) + "/models/hand16_left.pbtxt";
@@ -172,7 +181,6 @@ struct Args {
   int per_pair = PipelineParams{}.contacts.per_pair;
   double max_translation = PipelineParams{}.step.max_step_translation;
   double stop_distance = PipelineParams{}.sweep.stop_distance;
-  double tracking_volume = 0.0, max_speed = 0.0;  // 0: the sources' defaults (50 m, 30 m/s)
   int sweep_iterations = PipelineParams{}.sweep.max_iterations;
   double contact_margin = PipelineParams{}.step.rows.margin;
   double push_out = PipelineParams{}.step.rows.contact_beta;
@@ -228,7 +236,10 @@ Args parseArgs(int argc, char** argv) {
     }
     else if (f == "--json") a.json = value();
     else if (f == "--poses") a.poses = value();
-    else if (f == "--tracker-pose") a.tracker_pose = value();
+    else if (f == "--tracker-pose") a.calibration.pose = value();
+    else if (f == "--tracker-units") a.calibration.units = value();
+    else if (f == "--tracker-up") a.calibration.up = value();
+    else if (f == "--palm-offset") a.calibration.palm_offset = value();
     else if (f == "--contact-rotation") a.contact_rotation = parseDouble(f, value(), 1e-6, 10.0);
     else if (f == "--max-rotation") a.max_rotation = parseDouble(f, value(), 1e-6, 10.0);
     else if (f == "--contacts-per-pair") a.per_pair = static_cast<int>(parseCount(f, value(), 1, 64));
@@ -237,9 +248,9 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--sweep-iterations") a.sweep_iterations = static_cast<int>(parseCount(f, value(), 1, 100000));
     else if (f == "--contact-margin") a.contact_margin = parseDouble(f, value(), 0.0, 1e-2);
     else if (f == "--push-out") a.push_out = parseDouble(f, value(), 0.0, 1.0);
-    else if (f == "--hand-sides") a.hand_sides = value();
-    else if (f == "--tracking-volume") a.tracking_volume = parseDouble(f, value(), 1e-3, 1e9);
-    else if (f == "--max-speed") a.max_speed = parseDouble(f, value(), 1e-3, 1e9);
+    else if (f == "--hand-map" || f == "--hand-sides") a.calibration.hand_map = value();
+    else if (f == "--tracking-volume") a.calibration.volume_m = parseDouble(f, value(), 1e-3, 1e4);
+    else if (f == "--max-speed") a.calibration.max_speed = parseDouble(f, value(), 1e-3, 1e6);
     else if (f == "--solver") {
       const std::string s = value();
       if (s == "exact") a.solver = SolverKind::Exact;
@@ -319,12 +330,7 @@ int main(int argc, char** argv) {
   std::deque<HandModel> tool_models;  // stable addresses
   Scene scene;
   try {
-    bridges::SourceOptions so;
-    if (!args.tracker_pose.empty()) so.X_WT = bridges::parsePose(args.tracker_pose);
-    if (!args.hand_sides.empty()) so.hand_sides = bridges::parseHandSides(args.hand_sides);
-    if (args.tracking_volume > 0.0) so.max_abs_position_m = args.tracking_volume;
-    if (args.max_speed > 0.0) so.max_speed_mps = args.max_speed;
-    rec = bridges::loadRecording(args.recording, so);
+    rec = bridges::loadRecording(args.recording, bridges::sourceOptions(args.calibration));
   } catch (const std::exception& e) { fail(e.what()); }
   if (rec.frames.empty()) fail(args.recording + ": no usable frames (" + rec.rejections + ")");
   try {

@@ -43,7 +43,8 @@ int main(int argc, char** argv) {
   int frames = 0;
   double speed = 1.0, start_timeout = 30.0;
   cli.option("--source", &source_spec, "SPEC",
-             "tracker source: a recording of any format (Leap JSON, .dtrack, a --record file; detected by content),\n"
+             "tracker source: a recording of any format (Leap JSON, .dtrack, OpenXR / MediaPipe JSON Lines, Aria CSV,\n"
+             "a synthetic script, a --record file; detected by content: bridges/README.md),\n"
              "leap:FILE / dtrack:FILE, or a live dtrack://HOST:PORT (default: the lab's recording)");
   double duration = 0.0, silence = 1.0;
   std::string record;
@@ -72,7 +73,7 @@ int main(int argc, char** argv) {
   if (!(duration >= 0.0 && duration <= 7 * 86400.0)) cli.fail("--duration must be in [0, 604800] s");
   if (!(silence >= 0.05 && silence <= 3600.0)) cli.fail("--silence must be in [0.05, 3600] s");
 
-  svc::Service service("ingest", common, cli);
+  svc::Service service("ingest", common, cli, /*steps=*/false);
   const LabConfig& lab = service.lab();
   // The lab's tracker calibration, where the command line left a field at its default.
   if (lab.tracker.any()) {
@@ -98,6 +99,10 @@ int main(int argc, char** argv) {
   try {
     source = bridges::openSource(source_spec, bridges::sourceOptions(calib, frames));
     ::malloc_trim(0);  // a recording's JSON document is freed by now: give its pages back (glibc keeps them)
+    if (!source->live()) {
+      const std::string mismatch = svc::replayRateMismatch(common.frame_rate, source->nominalRate(), source_spec);
+      if (!mismatch.empty()) cli.fail(mismatch);
+    }
     if (source->live()) {
       if (service.lockstep()) cli.fail("--lockstep needs a recording, not a live source (" + source_spec + ")");
       source->start();  // bind now: a port in use is a configuration error

@@ -326,7 +326,9 @@ int main(int argc, char** argv) {
       if (!(rate > 0)) cli.fail("--source " + source_uri + ": give --frame-rate HZ (the lab names no recording)");
     } else {
       auto src = bridges::openSource(lab.recording, frames);
-      rate = live_rate > 0 ? live_rate : src->nominalRate();
+      const std::string mismatch = svc::replayRateMismatch(live_rate, src->nominalRate(), lab.recording);
+      if (!mismatch.empty()) cli.fail(mismatch);
+      rate = src->nominalRate();
       n_frames = src->remaining();
     }
     scene = loadScene(lab.scene);
@@ -1256,6 +1258,9 @@ int main(int argc, char** argv) {
     if (lockstep && !plausible(rep.plausibility, &why)) {
       rep.verdict.ok = false;
       rep.verdict.reasons.push_back("not plausible: " + why);
+    } else if (!lockstep && rep.plausibility.all.tracked == 0 && !rep.plausibility.failure.empty()) {
+      rep.verdict.ok = false;  // live too: a run that tracked no hand measured nothing
+      rep.verdict.reasons.push_back(rep.plausibility.failure);
     }
   }
   printSummary(rep);

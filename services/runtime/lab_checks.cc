@@ -1,5 +1,7 @@
 #include "runtime/lab_checks.h"
 
+#include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 #include "leap/tool_target.h"
@@ -43,6 +45,17 @@ bridges::CalibrationText labCalibration(const LabConfig& lab) {
     throw std::runtime_error(lab.file + ": tracker: " + e.what());
   }
   return c;
+}
+
+std::string replayRateMismatch(double given_hz, double recording_hz, const std::string& recording) {
+  if (!(given_hz > 0.0) || std::abs(given_hz - recording_hz) <= 0.01 * recording_hz) return "";
+  auto hz = [](double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.6g Hz", v);
+    return std::string(buf);
+  };
+  return "--frame-rate " + hz(given_hz) + ": " + recording + " replays at its own rate, " + hz(recording_hz) +
+         " (leave --frame-rate out for a recording)";
 }
 
 }  // namespace godhand::svc

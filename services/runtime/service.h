@@ -48,7 +48,9 @@ class Service {
   /// Loads and checks the lab and the options; any failure: cli.fail (exit 2). No DDS yet, so
   /// that a main can check the rest of its configuration before any participant exists (a
   /// participant alive at exit() would leave its shared-memory segment behind).
-  Service(std::string name, const CommonOptions& options, const Cli& cli);
+  /// steps = false (the ingest): the service steps nothing, so it needs no frame rate (a lab
+  /// without a recording does not make --frame-rate required).
+  Service(std::string name, const CommonOptions& options, const Cli& cli, bool steps = true);
   ~Service();
   /// Makes the participant and the status writer; failure: cli.fail (exit 2).
   void connect();

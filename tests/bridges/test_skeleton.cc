@@ -341,3 +341,129 @@ TEST(Skeleton, AriaCsvGivesTheLeapHand) {
   EXPECT_THROW(bridges::loadRecording(p2), bridges::SourceError);
   std::remove(p2.c_str());
 }
+
+// A second user's right hand in the same frames (1 m to the side, listed first in every other
+// frame): the first user's hand goes on in every frame, and the other is counted as a second hand
+// of that side, not as a hundred jumps of the one hand; --hand-map picks the user by id.
+TEST(Skeleton, ASecondUsersHandOfTheSameSideIsCountedAsSuch) {
+  const leap::Recording l = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/pinch.json");
+  const std::string xr = tmpFile("two_users.jsonl");
+  {
+    std::ofstream a(xr);
+    a.precision(17);
+    a << "{\"format\": \"godhand-openxr-hands\", \"version\": 1}\n";
+    size_t i = 0;
+    for (const leap::TrackerFrame& f : l.frames()) {
+      const leap::TrackedHand* h = bridges::handOfSide(f, true);
+      if (!h) continue;
+      leap::TrackedHand other = *h;
+      other.X_W_palm.p += Vec3(1.0, 0, 0);
+      for (auto& finger : other.joints_W)
+        for (Vec3& j : finger) j += Vec3(1.0, 0, 0);
+      auto hand = [&](const leap::TrackedHand& x, int id) {
+        std::ostringstream s;
+        s.precision(17);
+        s << "{\"side\": \"right\", \"id\": " << id << ", \"active\": true, \"confidence\": 1, \"joints\": " << jointsJson(xrJointsOf(x)) << "}";
+        return s.str();
+      };
+      a << "{\"time_ns\": " << f.timestamp_us * 1000 << ", \"hands\": ["
+        << (i % 2 ? hand(other, 3) + "," + hand(*h, 1) : hand(*h, 1) + "," + hand(other, 3)) << "]}\n";
+      ++i;
+    }
+  }
+  const bridges::LoadedRecording r = bridges::loadRecording(xr);
+  std::printf("[info] %s\n", r.rejections.c_str());
+  ASSERT_EQ(r.frames.size(), l.frames().size());
+  EXPECT_NE(r.rejections.find("second hands of a side in one frame (another user? --hand-map picks by id) " +
+                              std::to_string(l.frames().size())),
+            std::string::npos)
+      << r.rejections;
+  EXPECT_EQ(r.rejections.find("jump"), std::string::npos) << r.rejections;
+  for (size_t i = 0; i < r.frames.size(); ++i) {
+    ASSERT_EQ(r.frames[i].hands.size(), 1u) << i;
+    EXPECT_NEAR((r.frames[i].hands[0].X_W_palm.p - bridges::handOfSide(l.frames()[i], true)->X_W_palm.p).norm(), 0.0, 1e-9) << i;
+  }
+  // The map picks the other user: every frame its hand, 1 m to the side.
+  bridges::SourceOptions o;
+  o.hand_sides = bridges::parseHandSides("3:right");
+  const bridges::LoadedRecording other = bridges::loadRecording(xr, o);
+  ASSERT_EQ(other.frames.size(), l.frames().size());
+  for (size_t i = 0; i < other.frames.size(); ++i) {
+    ASSERT_EQ(other.frames[i].hands.size(), 1u) << i;
+    EXPECT_NEAR(other.frames[i].hands[0].X_W_palm.p.x() - bridges::handOfSide(l.frames()[i], true)->X_W_palm.p.x(), 1.0, 1e-9) << i;
+  }
+  EXPECT_EQ(other.rejections.find("second hands"), std::string::npos) << other.rejections;
+}
+
+// What a user's own JSON Lines writer gets wrong is named: a missing header line, a UTF-8 BOM
+// (read as if absent), a float time, a hand without its side, 21 joints for OpenXR's 26.
+TEST(Skeleton, JsonLinesMistakesAreNamed) {
+  const leap::Recording l = leap::Recording::load(std::string(GODHAND_DEPLOY_DIR) + "/recordings/pinch.json");
+  std::vector<std::string> lines;
+  for (size_t i = 0; i < 20; ++i) {
+    const leap::TrackerFrame& f = l.frames()[i];
+    const leap::TrackedHand* h = bridges::handOfSide(f, true);
+    if (!h) continue;
+    std::ostringstream s;
+    s.precision(17);
+    s << "{\"time_ns\": " << f.timestamp_us * 1000 << ", \"hands\": [{\"side\": \"right\", \"id\": 1, \"joints\": "
+      << jointsJson(xrJointsOf(*h)) << "}]}";
+    lines.push_back(s.str());
+  }
+  ASSERT_GE(lines.size(), 10u);
+  const std::string header = "{\"format\": \"godhand-openxr-hands\", \"version\": 1}\n";
+  auto file = [&](const std::string& name, const std::string& text) {
+    const std::string path = tmpFile(name);
+    std::ofstream(path) << text;
+    return path;
+  };
+  std::string body;
+  for (const std::string& x : lines) body += x + "\n";
+  // No header: the cause, not "not valid JSON ... line 2".
+  try {
+    bridges::loadRecording(file("noheader.jsonl", body));
+    ADD_FAILURE() << "read without its header";
+  } catch (const bridges::SourceError& e) {
+    EXPECT_NE(std::string(e.what()).find("the header line is missing"), std::string::npos) << e.what();
+  }
+  // A byte-order mark: the same frames as without.
+  const auto plain = bridges::loadRecording(file("plain.jsonl", header + body));
+  const auto bom = bridges::loadRecording(file("bom.jsonl", "\xEF\xBB\xBF" + header + body));
+  ASSERT_EQ(bom.frames.size(), plain.frames.size());
+  EXPECT_EQ(bom.frames.size(), lines.size());
+  // Each mistake on one line, counted under its own name.
+  auto edit = [](std::string x, const std::string& from, const std::string& to) {
+    const size_t at = x.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return at == std::string::npos ? x : x.replace(at, from.size(), to);
+  };
+  std::string bad = header;
+  bad += edit(lines[0], "\"time_ns\": ", "\"time_ns\": 1.5e3 , \"x\": ") + "\n";
+  bad += edit(lines[1], "\"side\": \"right\", ", "") + "\n";
+  bad += edit(lines[2], "\"side\": \"right\"", "\"side\": \"Unknown\"") + "\n";
+  std::string joints21 = lines[3];
+  {
+    // Cut the joints array after its 21st entry.
+    const size_t open = joints21.find("\"joints\": [") + 10;
+    size_t at = open + 1;
+    for (int k = 0; k < 21; ++k) at = joints21.find(']', at) + 1;
+    const size_t close = joints21.rfind("]}]}");
+    joints21 = joints21.substr(0, at) + joints21.substr(close);
+  }
+  bad += joints21 + "\n";
+  for (size_t i = 4; i < lines.size(); ++i) bad += lines[i] + "\n";
+  const auto r = bridges::loadRecording(file("mistakes.jsonl", bad));
+  std::printf("[info] %s\n", r.rejections.c_str());
+  EXPECT_EQ(r.frames.size(), lines.size() - 1);  // the float time drops its line, the others a hand
+  for (const char* reason : {"line: time_ns missing or not an integer 1", "hand: side missing or not \"left\"/\"right\" 2",
+                             "hand: joints not 26 [px,py,pz,qx,qy,qz,qw,radius,flags] 1"})
+    EXPECT_NE(r.rejections.find(reason), std::string::npos) << reason << " in " << r.rejections;
+  EXPECT_EQ(r.rejections.find("parse error"), std::string::npos) << r.rejections;
+  // An empty file says so.
+  try {
+    bridges::loadRecording(file("empty.jsonl", ""));
+    ADD_FAILURE() << "an empty file was read";
+  } catch (const bridges::SourceError& e) {
+    EXPECT_NE(std::string(e.what()).find(": empty file"), std::string::npos) << e.what();
+  }
+}

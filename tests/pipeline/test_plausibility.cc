@@ -826,6 +826,54 @@ TEST(Plausibility, AHandThatNeverStartsIsAFailedRun) {
   }
 }
 
+// A lab whose clusters the source never had a hand for (one left cluster and a right-hand
+// recording) measured nothing and passed --check: such a run is a failed run, and says why. One
+// idle cluster beside a tracked one (a two-hand lab and a one-hand recording) is a run of the
+// other hand; a hand tracked in one frame of five is measured.
+TEST(Plausibility, ARunWithNoHandEverTrackedIsAFailedRun) {
+  Scene scene = sceneOf({});
+  const HandModel m = bodyModel("sphere { radius: 0.01 }");
+  struct Case {
+    std::vector<int> tracked_frames;  // per hand
+    bool fails;
+  };
+  for (const Case& c : {Case{{0}, true}, Case{{0, 0}, true}, Case{{1}, false}, Case{{0, 5}, false}}) {
+    const size_t H = c.tracked_frames.size();
+    PipelineParams p = params(1.0 / 100);
+    std::vector<const HandModel*> models(H, &m);
+    std::vector<std::string> names;
+    for (size_t h = 0; h < H; ++h) names.push_back(h ? "right" : "left");
+    Pipeline pipe(scene, models, p);
+    RunMetrics metrics(scene, models, names, p);
+    std::vector<Pose> targets(H);
+    for (size_t h = 0; h < H; ++h) targets[h] = at(0.2 * static_cast<double>(h), 0, 0);
+    for (int k = 0; k < 5; ++k) {
+      std::vector<HandInput> in(H);
+      for (size_t h = 0; h < H; ++h)
+        if (k < c.tracked_frames[h]) in[h] = HandInput{true, &targets[h], nullptr};
+      pipe.step(in);
+      for (size_t h = 0; h < H; ++h) {
+        HandSample s;
+        s.started = pipe.started(static_cast<int>(h));
+        s.tracked = in[h].tracked;
+        s.X = s.started ? pipe.poses(static_cast<int>(h)).data() : nullptr;
+        s.targets = in[h].tracked ? &targets[h] : nullptr;
+        metrics.add(static_cast<int>(h), s, in[h], pipe.resolver().collision());
+      }
+    }
+    const RunSummary sum = metrics.summary();
+    std::string why;
+    SCOPED_TRACE(::testing::Message() << H << " hand(s), first tracked in " << c.tracked_frames[0] << " frames");
+    if (c.fails) {
+      EXPECT_NE(sum.failure.find("no hand was ever tracked ('left'"), std::string::npos) << sum.failure;
+      EXPECT_FALSE(plausible(sum, &why));
+    } else {
+      EXPECT_EQ(sum.failure, "");
+      EXPECT_TRUE(plausible(sum, &why)) << why;
+    }
+  }
+}
+
 // A hand that cannot start (its target deep in a closed box) searches again every start_retry
 // (0.1 s), not every frame, and starts within that once its target is out: 30 frames at 100 Hz
 // inside make 3 searches, then a target 2 cm above the box starts it within 10 frames.
