@@ -53,9 +53,15 @@ JsonlRecording readAriaCsv(const std::string& text, const std::string& name, con
     return it->second;
   };
   const size_t t_col = need("tracking_timestamp_us");
-  size_t conf_col[2], lm_col[2][21][3];
+  size_t conf_col[2] = {0, 0}, lm_col[2][21][3] = {};
   const char* sides[2] = {"left", "right"};
+  // A file of one hand (a user's own export) may leave the other side's columns out; a side
+  // whose confidence column is there needs all of its landmarks.
+  bool has_side[2];
+  for (int s = 0; s < 2; ++s) has_side[s] = col.count(std::string(sides[s]) + "_tracking_confidence") > 0;
+  if (!has_side[0] && !has_side[1]) need("right_tracking_confidence");
   for (int s = 0; s < 2; ++s) {
+    if (!has_side[s]) continue;
     conf_col[s] = need(std::string(sides[s]) + "_tracking_confidence");
     for (int i = 0; i < 21; ++i)
       for (int a = 0; a < 3; ++a)
@@ -80,6 +86,7 @@ JsonlRecording readAriaCsv(const std::string& text, const std::string& name, con
     f.timestamp_us = tu;
     f.frame_id = static_cast<std::int64_t>(rec.lines);
     for (int s = 1; s >= 0; --s) {
+      if (!has_side[s]) continue;
       double conf = 0;
       const int cs = parseNumber(v[conf_col[s]], &conf);
       if (cs != 0) { ++reasons[cs == 2 ? "hand: NaN/Inf" : "hand: parse error"]; continue; }

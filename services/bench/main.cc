@@ -217,7 +217,9 @@ Args parseArgs(int argc, char** argv) {
     const std::string f = argv[i];
     auto value = [&]() -> std::string {
       if (i + 1 >= argc) fail(f + ": missing value");
-      return argv[++i];
+      std::string v = argv[++i];
+      if (v.empty()) fail(f + ": empty value (leave the option out for its default)");
+      return v;
     };
     if (f == "--help" || f == "-h") {
       std::cout << usageText();

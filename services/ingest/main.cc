@@ -100,7 +100,9 @@ int main(int argc, char** argv) {
     source = bridges::openSource(source_spec, bridges::sourceOptions(calib, frames));
     ::malloc_trim(0);  // a recording's JSON document is freed by now: give its pages back (glibc keeps them)
     if (!source->live()) {
-      const std::string mismatch = svc::replayRateMismatch(common.frame_rate, source->nominalRate(), source_spec);
+      // (Live, the services step at the replay's wall-clock rate: the recording's times --speed.)
+      const double replay_hz = source->nominalRate() * (service.lockstep() ? 1.0 : speed);
+      const std::string mismatch = svc::replayRateMismatch(common.frame_rate, replay_hz, source_spec);
       if (!mismatch.empty()) cli.fail(mismatch);
     }
     if (source->live()) {
@@ -127,6 +129,17 @@ int main(int argc, char** argv) {
   }
   std::fprintf(stderr, "ingest: %s -> %zu cluster(s), %s mode, domain %d\n", source->describe().c_str(),
                lab.clusters.size(), service.lockstep() ? "lock-step" : "live", common.domain >= 0 ? common.domain : static_cast<int>(lab.domain_id));
+  // Hands of a side that no cluster of the lab drives are published nowhere: said at the start
+  // (a recording's sides are known), counted at the end (every source).
+  bool side_driven[2] = {false, false};
+  for (size_t c = 0; c < lab.clusters.size(); ++c)
+    if (retarget[c]) side_driven[lab.clusters[c].side == "right" ? 1 : 0] = true;
+  std::uint64_t undriven[2] = {0, 0};
+  if (!source->live())
+    for (const bool right : {false, true})
+      if (source->hasSide(right) && !side_driven[right ? 1 : 0])
+        std::fprintf(stderr, "ingest: the source has %s hands and the lab no %s cluster: they drive nothing\n",
+                     right ? "right" : "left", right ? "right" : "left");
 
   service.connect();
   std::unique_ptr<dds::Writer<msg::HandTarget>> writer_p;
@@ -326,6 +339,8 @@ int main(int argc, char** argv) {
       if (writer.write(out)) ++service.samples_out;
       else service.reject("write failed (hand " + std::to_string(c) + ")");
     }
+    for (const bridges::TrackedHand& h : f.hands)
+      if (!side_driven[h.right ? 1 : 0]) ++undriven[h.right ? 1 : 0];
     ++service.samples_in;
     service.processed(k, t_source);
     service.heartbeat();
@@ -341,6 +356,9 @@ int main(int argc, char** argv) {
   syncRejects();
   const bridges::SourceStats ss = source->stats();
   std::fprintf(stderr, "ingest: source done: %llu frames; %s\n", static_cast<unsigned long long>(ss.frames), ss.detail.c_str());
+  if (undriven[0] + undriven[1] > 0)
+    std::fprintf(stderr, "ingest: hands of a side no cluster drives (published nowhere): left %llu, right %llu\n",
+                 static_cast<unsigned long long>(undriven[0]), static_cast<unsigned long long>(undriven[1]));
   std::string by_reason;
   for (const auto& [reason, n] : ss.by_reason) by_reason += (by_reason.empty() ? "" : ", ") + reason + " " + std::to_string(n);
   std::fprintf(stderr, "ingest: source %s: received %llu, accepted %llu, rejected %llu (%s), superseded %llu, silences %llu\n", source_spec.c_str(),

@@ -55,7 +55,7 @@ std::string replayRateMismatch(double given_hz, double recording_hz, const std::
     return std::string(buf);
   };
   return "--frame-rate " + hz(given_hz) + ": " + recording + " replays at its own rate, " + hz(recording_hz) +
-         " (leave --frame-rate out for a recording)";
+         " here (leave --frame-rate out for a recording)";
 }
 
 }  // namespace godhand::svc

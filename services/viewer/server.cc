@@ -51,7 +51,8 @@ struct Server::Impl {
   WsServer ws;
   std::unique_ptr<Hub> hub;
   std::map<Hdl, std::pair<int, std::unique_ptr<ConnSink>>, std::owner_less<Hdl>> conns;
-  std::vector<Hdl> http_in_flight;  ///< HTTP connections answered and not yet gone (weak handles)
+  /// HTTP connections answered and not yet gone (weak handles), with the client's address.
+  std::vector<std::pair<Hdl, std::string>> http_in_flight;
   std::size_t overflow_bytes = 0;   ///< a WebSocket queue beyond this is closed (twice the largest message)
   std::size_t pong_below_bytes = 0; ///< a ping is answered while the queue is below this
   std::unique_ptr<boost::asio::steady_timer> stats_timer;
@@ -146,16 +147,22 @@ Server::Server(const ServerOptions& o) : impl_(std::make_unique<Impl>()), inbox_
     auto con = impl_->ws.get_con_from_hdl(h);
     // At most kMaxHttpInFlight responses on their way at once (each holds its body until the
     // client has read it: 1,200 clients that never read held 1.7 GB); the rest: 503, counted.
+    // And at most kMaxHttpPerAddress of them for one client address, so that one host that never
+    // reads cannot take every slot (16 such connections kept the page from everyone else).
     auto& flight = impl_->http_in_flight;
-    flight.erase(std::remove_if(flight.begin(), flight.end(), [](const Hdl& x) { return x.expired(); }), flight.end());
-    if (static_cast<int>(flight.size()) >= kMaxHttpInFlight) {
+    flight.erase(std::remove_if(flight.begin(), flight.end(), [](const auto& x) { return x.first.expired(); }), flight.end());
+    boost::system::error_code aec;
+    const auto ep = con->get_raw_socket().remote_endpoint(aec);
+    const std::string addr = aec ? std::string("?") : ep.address().to_string();
+    const auto same = std::count_if(flight.begin(), flight.end(), [&](const auto& x) { return x.second == addr; });
+    if (static_cast<int>(flight.size()) >= kMaxHttpInFlight || same >= kMaxHttpPerAddress) {
       ++http_refused_;
       con->set_status(websocketpp::http::status_code::service_unavailable);
       con->replace_header("Retry-After", "1");
       con->set_body("busy\n");
       return;
     }
-    flight.push_back(h);
+    flight.emplace_back(h, addr);
     std::string path = con->get_resource();
     const auto q = path.find('?');
     if (q != std::string::npos) path.resize(q);

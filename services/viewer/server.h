@@ -73,6 +73,7 @@ class Server {
   std::uint64_t oldProtocolRefused() const { return old_protocol_refused_.load(); }
   std::uint64_t badKeyRefused() const { return bad_key_refused_.load(); }
   static constexpr int kMaxHttpInFlight = 16;
+  static constexpr int kMaxHttpPerAddress = 8;
 
   struct Impl;
 

@@ -467,3 +467,51 @@ TEST(Skeleton, JsonLinesMistakesAreNamed) {
     EXPECT_NE(std::string(e.what()).find(": empty file"), std::string::npos) << e.what();
   }
 }
+
+// An Aria-style CSV of one hand (the other side's columns left out, as a user's own export may)
+// reads the same hand; a side with its confidence but a landmark column missing is refused, naming it.
+TEST(Skeleton, AriaCsvOfOneHandWithoutTheOtherSidesColumns) {
+  const std::string path = std::string(GODHAND_TEST_DATA_DIR) + "/aria/pinch_head_v2.csv";
+  std::ifstream in(path);
+  std::vector<std::vector<std::string>> rows;
+  for (std::string line; std::getline(in, line);) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::vector<std::string> cells;
+    std::stringstream ss(line);
+    for (std::string c; std::getline(ss, c, ',');) cells.push_back(c);
+    rows.push_back(cells);
+  }
+  ASSERT_GT(rows.size(), 1u);
+  auto write = [&](const std::string& name, auto keep) {
+    const std::string out = tmpFile(name);
+    std::ofstream o(out);
+    for (const auto& r : rows) {
+      bool first = true;
+      for (size_t c = 0; c < r.size(); ++c) {
+        if (!keep(rows[0][c])) continue;
+        o << (first ? "" : ",") << r[c];
+        first = false;
+      }
+      o << "\n";
+    }
+    return out;
+  };
+  auto left = [](const std::string& col) { return col.rfind("left_", 0) == 0 || col.find("_left_") != std::string::npos; };
+  const std::string right_only = write("right_only.csv", [&](const std::string& c) { return !left(c); });
+  const bridges::LoadedRecording full = bridges::loadRecording(path), one = bridges::loadRecording(right_only);
+  ASSERT_EQ(one.frames.size(), full.frames.size());
+  EXPECT_TRUE(one.has_right);
+  EXPECT_FALSE(one.has_left);
+  for (size_t i = 0; i < one.frames.size(); ++i) {
+    ASSERT_EQ(one.frames[i].hands.size(), 1u);
+    EXPECT_EQ(one.frames[i].hands[0].X_W_palm.p, bridges::handOfSide(full.frames[i], true)->X_W_palm.p);
+  }
+  const std::string partial =
+      write("partial.csv", [&](const std::string& c) { return !left(c) && c != "tx_right_landmark_7_device"; });
+  try {
+    bridges::loadRecording(partial);
+    ADD_FAILURE() << "a side without one of its landmark columns was read";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("missing column tx_right_landmark_7_device"), std::string::npos) << e.what();
+  }
+}

@@ -1,0 +1,122 @@
+// The viewer's HTTP side against clients that never read (services/viewer/server.cc): at most
+// Server::kMaxHttpInFlight responses on their way at once and at most kMaxHttpPerAddress of them
+// for one client address, so that one host cannot keep the page from everyone else. A real
+// Server on loopback and real sockets with a small receive buffer that are never read.
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "viewer/server.h"
+
+namespace godhand::viewer {
+namespace {
+
+/// A TCP connection from `from` (a 127.x address) to 127.0.0.1:port with a 4 KB receive buffer.
+int connectFrom(const char* from, int port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return -1;
+  const int small = 4096;
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &small, sizeof small);
+  sockaddr_in local{};
+  local.sin_family = AF_INET;
+  ::inet_pton(AF_INET, from, &local.sin_addr);
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&local), sizeof local) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  sockaddr_in to{};
+  to.sin_family = AF_INET;
+  to.sin_port = htons(static_cast<std::uint16_t>(port));
+  ::inet_pton(AF_INET, "127.0.0.1", &to.sin_addr);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&to), sizeof to) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  timeval tv{5, 0};  // a read never waits longer than this
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  return fd;
+}
+
+bool request(int fd, const std::string& path) {
+  const std::string r = "GET " + path + " HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+  return ::send(fd, r.data(), r.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(r.size());
+}
+
+/// The status code of one request from `from` ("" when there is no answer within 5 s).
+std::string statusFrom(const char* from, int port, const std::string& path) {
+  const int fd = connectFrom(from, port);
+  if (fd < 0) return "no connection";
+  std::string head;
+  if (request(fd, path)) {
+    char buf[512];
+    while (head.find("\r\n") == std::string::npos) {
+      const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
+      if (n <= 0) break;
+      head.append(buf, static_cast<size_t>(n));
+    }
+  }
+  ::close(fd);
+  const size_t sp = head.find(' ');
+  return sp == std::string::npos ? "" : head.substr(sp + 1, 3);
+}
+
+TEST(ViewerServer, ClientsThatNeverReadHoldOnlyTheirAddresssShareOfTheHttpSlots) {
+  const std::string root = ::testing::TempDir() + "/viewer_root";
+  ASSERT_EQ(std::system(("mkdir -p " + root).c_str()), 0);
+  std::ofstream(root + "/index.html") << "<html></html>\n";
+  std::ofstream(root + "/viewer.js") << "// page\n";
+  ServerOptions o;
+  o.web_root = root;
+  Server server(o);
+  // 32 MB: more than any socket buffers between the server and a client that does not read.
+  server.setRoute("/big", "application/octet-stream", std::make_shared<const std::string>(std::string(32u << 20, 'x')));
+  server.start();
+  const int port = server.port();
+  ASSERT_EQ(statusFrom("127.0.0.1", port, "/index.html"), "200");
+
+  std::vector<int> hogs;
+  for (int i = 0; i < Server::kMaxHttpPerAddress; ++i) {
+    const int fd = connectFrom("127.0.0.1", port);
+    ASSERT_GE(fd, 0);
+    ASSERT_TRUE(request(fd, "/big"));
+    hogs.push_back(fd);
+  }
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the server has answered them all
+  EXPECT_EQ(statusFrom("127.0.0.1", port, "/index.html"), "503") << "one address holds at most its share";
+  EXPECT_EQ(statusFrom("127.0.0.2", port, "/index.html"), "200") << "another address is served meanwhile";
+  // Two more addresses of hogs fill the server's 16 slots: then everyone waits.
+  std::vector<int> more;
+  for (const char* from : {"127.0.0.3", "127.0.0.4"})
+    for (int i = 0; i < Server::kMaxHttpPerAddress; ++i) {
+      const int fd = connectFrom(from, port);
+      ASSERT_GE(fd, 0);
+      ASSERT_TRUE(request(fd, "/big"));
+      more.push_back(fd);
+    }
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(statusFrom("127.0.0.5", port, "/index.html"), "503") << Server::kMaxHttpInFlight << " slots in all";
+  EXPECT_GE(server.httpRefused(), 3u);
+  for (int fd : hogs) ::close(fd);
+  for (int fd : more) ::close(fd);
+  // Gone clients free their slots.
+  std::string after;
+  for (int tries = 0; tries < 50 && after != "200"; ++tries) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    after = statusFrom("127.0.0.1", port, "/index.html");
+  }
+  EXPECT_EQ(after, "200");
+  server.stop();
+}
+
+}  // namespace
+}  // namespace godhand::viewer
