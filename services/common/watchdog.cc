@@ -1,5 +1,7 @@
 #include "common/watchdog.h"
 
+#include <algorithm>
+
 namespace godhand {
 
 void Watchdog::endEpisode(Entry& e, Clock::time_point now) {
@@ -14,8 +16,21 @@ void Watchdog::beat(const std::string& service, Clock::time_point now) {
   if (now > e.last) e.last = now;
 }
 
+void Watchdog::shiftOver(Clock::time_point now, bool record) {
+  if (last_update_ != Clock::time_point{} && now > last_update_) {
+    const auto gap = now - last_update_;
+    if (std::chrono::duration<double>(gap).count() > 0.5 * silent_after_) {
+      if (record) pauses_.push_back({seconds(last_update_), std::chrono::duration<double>(gap).count()});
+      for (auto& [name, e] : entries_)
+        if (e.last != Clock::time_point{} && !e.silent) e.last = std::min(e.last + gap, now);
+    }
+  }
+  last_update_ = std::max(last_update_, now);
+}
+
 std::vector<std::string> Watchdog::update(Clock::time_point now) {
   std::vector<std::string> out;
+  shiftOver(now, true);
   for (auto& [name, e] : entries_) {
     if (e.last == Clock::time_point{} || e.silent) continue;
     if (std::chrono::duration<double>(now - e.last).count() > silent_after_) {

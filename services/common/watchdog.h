@@ -7,6 +7,13 @@
 // most silent_after old, Silent afterwards (until a heartbeat comes again). Each Silent spell is
 // an episode (start, end; end < 0 while it lasts). reset() forgets a service (it is being
 // restarted: Unknown until its new process beats).
+//
+// The watchdog's own pauses: a gap between two update() calls of more than half of silent_after
+// (the launcher's loop calls it every ~20 ms) is time nobody was looking (the launcher stopped
+// or starved, the machine stalled), and the heartbeats of that time may still be in the
+// launcher's sockets. It is not counted against any service: every newest heartbeat is moved on
+// by the gap (a 2.5 s stall of the launcher had it kill and restart all five healthy services).
+// Each such pause is recorded (pauses()).
 #pragma once
 
 #include <chrono>
@@ -26,6 +33,11 @@ class Watchdog {
     double end_s = -1.0;   ///< when it beat again, was reset, or < 0: still silent
   };
 
+  struct Pause {
+    double start_s = 0.0;     ///< seconds since the origin: the last update() before the gap
+    double duration_s = 0.0;  ///< the gap
+  };
+
   Watchdog(double silent_after_s, Clock::time_point origin) : silent_after_(silent_after_s), origin_(origin) {}
 
   /// A heartbeat of `service` arrived at `now`.
@@ -37,6 +49,11 @@ class Watchdog {
   double silentFor(const std::string& service, Clock::time_point now) const;
   void reset(const std::string& service, Clock::time_point now);
   const std::vector<Episode>& episodes() const { return episodes_; }
+  /// The caller did not watch from its last update() until `now` on purpose (its own work at the
+  /// end of a run): not counted against any service, and not recorded as a pause.
+  void resumeAfterOwnWork(Clock::time_point now) { shiftOver(now, false); }
+  /// The watchdog's own pauses (see above), oldest first.
+  const std::vector<Pause>& pauses() const { return pauses_; }
   double silentAfter() const { return silent_after_; }
 
  private:
@@ -47,11 +64,16 @@ class Watchdog {
   };
   double seconds(Clock::time_point t) const { return std::chrono::duration<double>(t - origin_).count(); }
   void endEpisode(Entry& e, Clock::time_point now);
+  /// A gap since the last update longer than half of silent_after moves every newest heartbeat on
+  /// by it (recorded as a pause when `record`); then now is the last update.
+  void shiftOver(Clock::time_point now, bool record);
 
   double silent_after_;
   Clock::time_point origin_;
   std::map<std::string, Entry> entries_;
   std::vector<Episode> episodes_;
+  Clock::time_point last_update_{};
+  std::vector<Pause> pauses_;
 };
 
 }  // namespace godhand

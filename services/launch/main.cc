@@ -985,8 +985,16 @@ int main(int argc, char** argv) {
         }
       }
     }
-    // The watchdog: a service without a heartbeat for silent_after is dead, whatever the reason.
-    for (const std::string& name : watchdog.update(Clock::now())) {
+    // The watchdog: a service without a heartbeat for silent_after is dead, whatever the reason
+    // (this launcher's own pauses not counted: watchdog.h).
+    const size_t pauses_before = watchdog.pauses().size();
+    const std::vector<std::string> silent_now = watchdog.update(Clock::now());
+    if (watchdog.pauses().size() > pauses_before) {
+      std::printf("launch: this launcher did not watch for %.1f s (stopped, starved or stalled): not counted against the services\n",
+                  watchdog.pauses().back().duration_s);
+      std::fflush(stdout);
+    }
+    for (const std::string& name : silent_now) {
       std::printf("launch: watchdog: %s silent (no heartbeat for %.1f s)%s\n", name.c_str(), watchdog.silentFor(name, Clock::now()),
                   restart && !lockstep && specOf(name) ? ": killing it for a restart" : "");
       std::fflush(stdout);  // now, not with the next per-second line
@@ -1081,6 +1089,7 @@ int main(int argc, char** argv) {
     }
   }
   scoreAwaiting(true);
+  watchdog.resumeAfterOwnWork(Clock::now());
   rep.run_s = secondsSince(t_start);
 
   // The services' last heartbeats (period 0.5 s) carry their final counters.
@@ -1089,6 +1098,7 @@ int main(int argc, char** argv) {
     while (Clock::now() < until) {
       dp->waitForData(Clock::now() + std::chrono::milliseconds(50));
       drain();
+      watchdog.update(Clock::now());
     }
   }
   scoreAwaiting(true);
@@ -1224,6 +1234,9 @@ int main(int argc, char** argv) {
     e.start_s -= off;
     if (e.end_s >= 0) e.end_s -= off;
   }
+  rep.launcher_pauses = watchdog.pauses();
+  for (Watchdog::Pause& p : rep.launcher_pauses)
+    p.start_s -= t_replay == Clock::time_point{} ? 0.0 : std::chrono::duration<double>(t_replay - t_start).count();
   rep.drills = drill_reports;
   for (size_t i = 0; i < drills.size(); ++i)
     if (!drill_fired[i]) rep.drills[i] = {drills[i].spec, drills[i].service, -1.0, -1.0, 0};

@@ -79,6 +79,10 @@ void printSummary(const RunReport& r) {
   for (const Watchdog::Episode& e : r.silent)
     std::printf("  watchdog: %s silent (no heartbeat for > %.1f s) from %s to %s\n", e.service.c_str(), r.silent_after_s,
                 secs(e.start_s).c_str(), e.end_s < 0 ? "the end" : secs(e.end_s).c_str());
+  for (const Watchdog::Pause& p : r.launcher_pauses)
+    std::printf("  this launcher did not watch for %.1f s from %s (stopped, starved or stalled): not counted against the "
+                "services; what it missed meanwhile may be counted lost or late\n",
+                p.duration_s, secs(p.start_s).c_str());
   for (const DrillReport& d : r.drills)
     std::printf("  fault drill %s: killed at %s (frame %llu), restarted at %s (times from the replay start)\n", d.spec.c_str(),
                 secs(d.killed_s).c_str(), static_cast<unsigned long long>(d.killed_frame), secs(d.restarted_s).c_str());
@@ -176,7 +180,10 @@ nlohmann::json reportJson(const RunReport& r) {
   j["services"] = services;
   nlohmann::json silent = nlohmann::json::array();
   for (const Watchdog::Episode& e : r.silent) silent.push_back({{"service", e.service}, {"from_s", orNull(e.start_s)}, {"to_s", orNull(e.end_s)}});
-  j["watchdog"] = {{"silent_after_s", r.silent_after_s}, {"silent", silent}, {"restarted", r.watchdog_restarts}};
+  nlohmann::json pauses = nlohmann::json::array();
+  for (const Watchdog::Pause& p : r.launcher_pauses) pauses.push_back({{"from_s", p.start_s}, {"duration_s", p.duration_s}});
+  j["watchdog"] = {{"silent_after_s", r.silent_after_s}, {"silent", silent}, {"restarted", r.watchdog_restarts},
+                   {"launcher_pauses", pauses}};
   j["late_joiner"] = {{"hand_states", r.late_states}, {"scene_description", r.late_description}, {"ms", orNull(r.late_ms)}};
   j["shm_segments_left"] = r.shm_left;
   j["shm_segments_removed"] = r.shm_removed;

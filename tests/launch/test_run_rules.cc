@@ -83,6 +83,43 @@ TEST(Watchdog, SilentServiceIsNoticedAndComesBack) {
   EXPECT_TRUE(w.update(t0 + 20s).size() == 1u);  // only the resolver (silent again), not the reset scene
 }
 
+// The launcher itself paused (SIGSTOP, a starved process, a stalled machine): 2.5 s in which
+// nobody looked, while the services kept beating into its sockets. Seen live: all five healthy
+// services killed and restarted. The gap is not counted against them; a service that stays
+// silent after the pause is still found, one limit after the pause ended.
+TEST(Watchdog, ItsOwnPauseIsNotCountedAgainstTheServices) {
+  const auto t0 = Watchdog::Clock::time_point{} + 1000s;
+  Watchdog w(1.2, t0);
+  for (int ms = 0; ms <= 1000; ms += 20) {  // the launcher's loop: beats every 0.5 s, updates every 20 ms
+    const auto t = t0 + std::chrono::milliseconds(ms);
+    if (ms % 500 == 0) {
+      w.beat("resolver", t);
+      w.beat("scene", t);
+    }
+    EXPECT_TRUE(w.update(t).empty());
+  }
+  EXPECT_TRUE(w.pauses().empty());
+  // Paused from 1.0 s to 3.5 s. The scene's queued heartbeat is read at once; the resolver's only later.
+  const auto resumed = t0 + 3500ms;
+  w.beat("scene", resumed);
+  EXPECT_TRUE(w.update(resumed).empty());
+  EXPECT_EQ(w.health("resolver"), Watchdog::Health::Alive);
+  ASSERT_EQ(w.pauses().size(), 1u);
+  EXPECT_NEAR(w.pauses()[0].start_s, 1.0, 1e-9);
+  EXPECT_NEAR(w.pauses()[0].duration_s, 2.5, 1e-9);
+  // The resolver really is silent (its last beat at 1.0 s): found 1.2 s after the pause's end.
+  for (int ms = 3520; ms <= 4680; ms += 20) {
+    const auto t = t0 + std::chrono::milliseconds(ms);
+    if (ms % 500 == 0) w.beat("scene", t);
+    EXPECT_TRUE(w.update(t).empty()) << ms;
+  }
+  const auto silent = w.update(t0 + 4720ms);
+  ASSERT_EQ(silent.size(), 1u);
+  EXPECT_EQ(silent[0], "resolver");
+  EXPECT_EQ(w.health("scene"), Watchdog::Health::Alive);
+  EXPECT_EQ(w.pauses().size(), 1u);  // 20 ms steps are no pauses
+}
+
 TEST(Delivery, CountsFramesNotTheHighestFrameNumber) {
   Delivery d(2);
   const std::uint64_t run = 77;

@@ -7,7 +7,8 @@ that nothing is left behind: no process of its domain, no new shared-memory segm
 
 usage: distributed.py CASE BIN_DIR DEPLOY_DIR DOMAIN [args]
 cases: same-hash RECORDING | same-hash-after-loss RECORDING | same-hash-under-packet-loss RECORDING | live RECORDING | kill SERVICE RECORDING | rejects | loopback RECORDING |
-       drills RECORDING | freeze SERVICE RECORDING | freeze-restart SERVICE RECORDING | startup-remote |
+       drills RECORDING | freeze SERVICE RECORDING | freeze-restart SERVICE RECORDING | launcher-paused RECORDING |
+       startup-remote |
        lockstep-fail RECORDING | ingest-hangs-at-exit RECORDING | two-labs RECORDING | profiles-qos | hand-kill SERVICE RECORDING
 """
 import re
@@ -327,6 +328,39 @@ def case_freeze(service, recording, restart):
         check(p.returncode == 1 and j.get("check", {}).get("ok") is False and budget_fail,
               f"--check failed (exit {p.returncode}) on the lost frames: {j.get('check')}")
         check("result_hash" not in j, "no result hash from a failed run")
+    common_checks(j)
+
+
+def case_launcher_paused(recording):
+    """SIGSTOP the launcher itself for 2.5 s with --restart (a starved launcher, a stalled
+    machine): its watchdog must not take its own pause for five silent services (seen in a soak:
+    all five healthy services killed and restarted). The pause is said and reported, nothing is
+    restarted, the run ends cleanly."""
+    p, report = launch_bg(["--recording", recording, "--speed", "0.5", "--restart"])
+    lines = []
+    try:
+        ok = wait_line(p, r"launch: t +[1-9]\.\d s \|.*resolver \d+ Hz running", 120, lines)
+        check(ok is not None, "the replay is running")
+        os.kill(p.pid, signal.SIGSTOP)
+        try:
+            time.sleep(2.5)
+        finally:
+            os.kill(p.pid, signal.SIGCONT)
+        out = rest_of(p, 240)
+    except Exception:
+        p.kill()
+        p.wait(10)
+        raise
+    print(out)
+    text = "".join(lines) + out
+    j = json.load(open(report)) if os.path.exists(report) else {}
+    check(re.search(r"launch: this launcher did not watch for [2-9]\.\d s", text) is not None, "the launcher said it was paused")
+    pauses = j.get("watchdog", {}).get("launcher_pauses", [])
+    check(any(q["duration_s"] >= 2.0 for q in pauses), f"the pause is in the report ({pauses})")
+    check("killing it for a restart" not in text and j.get("watchdog", {}).get("restarted") == [],
+          f"no service killed for the launcher's own pause ({j.get('watchdog', {}).get('restarted')})")
+    check(j.get("dead_at_end") == [], f"nothing dead at the end ({j.get('dead_at_end')})")
+    check(p.returncode == 0, f"exit 0 ({p.returncode})")
     common_checks(j)
 
 
@@ -695,6 +729,8 @@ try:
         case_freeze(ARGS[0], ARGS[1], False)
     elif CASE == "freeze-restart":
         case_freeze(ARGS[0], ARGS[1], True)
+    elif CASE == "launcher-paused":
+        case_launcher_paused(ARGS[0])
     elif CASE == "startup-remote":
         case_startup_remote()
     elif CASE == "profiles-qos":
