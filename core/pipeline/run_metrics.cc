@@ -11,13 +11,22 @@
 namespace godhand {
 
 namespace {
-Spread spreadOf(const std::vector<double>& v) {
+/// The spread of one or more hands' samples together (their kept values pooled; count and max exact).
+Spread spreadOf(const std::vector<const Sample*>& samples) {
   Spread s;
-  s.count = v.size();
+  std::vector<double> v;
+  bool have_max = false;
+  for (const Sample* x : samples) {
+    if (x->empty()) continue;
+    s.count += static_cast<std::size_t>(x->count());
+    s.sampled = s.sampled || x->sampled();
+    s.max = have_max ? std::max(s.max, x->max()) : x->max();
+    have_max = true;
+    v.insert(v.end(), x->values().begin(), x->values().end());
+  }
   if (v.empty()) return s;
   s.median = percentile(v, 0.5);
   s.p95 = percentile(v, 0.95);
-  s.max = *std::max_element(v.begin(), v.end());
   return s;
 }
 double maxBodyDistance(const std::vector<Pose>& a, const std::vector<Pose>& b) {
@@ -54,8 +63,9 @@ struct RunMetrics::Hand {
   const HandModel* model = nullptr;
   std::unique_ptr<HandSolver> twin;
   std::uint64_t frame = 0;
-  std::vector<double> free_err, model_err, lag, gap;
-  std::vector<double> lag_outside;  // the lag of the frames whose twin is outside every object
+  // Per frame (gap: per body-frame touching), bounded over a long run (math/stats.h).
+  Sample free_err, model_err, lag, gap;
+  Sample lag_outside;  // the lag of the frames whose twin is outside every object
   /// (frame, God poses, twin poses) of the frames of the last kWindow that had both: a frame
   /// without them (a tracking dropout) does not end a window, its two ends are what is compared
   /// (as anyone comparing the --poses files of the run and its twin would).
@@ -129,7 +139,7 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
   sum.penetration_max_m = std::max(sum.penetration_max_m, pen);
   for (size_t b = 0; b < n; ++b)  // the contact gap: touching the God side, how far from the true surface
     if (world.clearance(m.bodies[b].shape, X[b], MetricThresholds::kTouching) <= MetricThresholds::kTouching)
-      hand.gap.push_back(
+      hand.gap.add(
           std::min(world.referenceClearance(m.bodies[b].shape, X[b], MetricThresholds::kGapRange), MetricThresholds::kGapRange));
   sum.joint_gap_max_m = std::max(sum.joint_gap_max_m, s.joint_gap);
 
@@ -144,7 +154,7 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
     double to_target = 0.0;
     for (size_t b = 0; b < n; ++b)
       if (driven(s, b) && s.targets[b].p.allFinite()) to_target = std::max(to_target, (X[b].p - s.targets[b].p).norm());
-    if (!s.loaded) hand.free_err.push_back(to_target);
+    if (!s.loaded) hand.free_err.add(to_target);
     // Stuck: not moving, away from the targets (farther than the free twin, which is as near as
     // the model can come: what it cannot represent is model error, not a stuck hand), and
     // nothing in the way of going straight there.
@@ -162,12 +172,12 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
   if (twin && has_targets) {
     double depth = 0.0;
     for (size_t b = 0; b < n; ++b) depth = std::max(depth, world.penetration(m.bodies[b].shape, (*twin)[b]));
-    hand.model_err.push_back(model_err);
+    hand.model_err.add(model_err);
     const double e = maxBodyDistance(X, *twin) - depth;
-    hand.lag.push_back(e);
+    hand.lag.add(e);
     if (e > MetricThresholds::kLagAbove) ++sum.lag_above_5mm;
     if (!(depth > MetricThresholds::kTwinInside)) {
-      hand.lag_outside.push_back(e);
+      hand.lag_outside.add(e);
       if (e > MetricThresholds::kLagAbove) ++sum.lag_above_5mm_twin_outside;
     }
   }
@@ -193,23 +203,23 @@ void RunMetrics::add(int h, const HandSample& s, const HandInput& input, const C
 
 RunSummary RunMetrics::summary() const {
   RunSummary out;
-  std::vector<double> free_all, model_all, lag_all, gap_all, lag_outside_all;
+  std::vector<const Sample*> free_all, model_all, lag_all, gap_all, lag_outside_all;
   HandSummary& all = out.all;
   all.name = "all";
   for (const auto& hp : hands_) {
     const Hand& hand = *hp;
     HandSummary s = hand.sum;
-    s.free_tracking_error_m = spreadOf(hand.free_err);
-    s.model_error_m = spreadOf(hand.model_err);
-    s.excess_lag_m = spreadOf(hand.lag);
-    s.excess_lag_twin_outside_m = spreadOf(hand.lag_outside);
-    s.contact_gap_m = spreadOf(hand.gap);
+    s.free_tracking_error_m = spreadOf({&hand.free_err});
+    s.model_error_m = spreadOf({&hand.model_err});
+    s.excess_lag_m = spreadOf({&hand.lag});
+    s.excess_lag_twin_outside_m = spreadOf({&hand.lag_outside});
+    s.contact_gap_m = spreadOf({&hand.gap});
     out.hands.push_back(s);
-    free_all.insert(free_all.end(), hand.free_err.begin(), hand.free_err.end());
-    model_all.insert(model_all.end(), hand.model_err.begin(), hand.model_err.end());
-    lag_all.insert(lag_all.end(), hand.lag.begin(), hand.lag.end());
-    lag_outside_all.insert(lag_outside_all.end(), hand.lag_outside.begin(), hand.lag_outside.end());
-    gap_all.insert(gap_all.end(), hand.gap.begin(), hand.gap.end());
+    free_all.push_back(&hand.free_err);
+    model_all.push_back(&hand.model_err);
+    lag_all.push_back(&hand.lag);
+    lag_outside_all.push_back(&hand.lag_outside);
+    gap_all.push_back(&hand.gap);
     all.frames += s.frames;
     all.tracked += s.tracked;
     all.started += s.started;

@@ -48,6 +48,7 @@
 #include <string>
 #include <vector>
 
+#include "math/stats.h"
 #include "model/hand_model.h"
 #include "pipeline/collision_world.h"
 #include "pipeline/stages.h"
@@ -74,6 +75,9 @@ struct HandSample {
 struct Spread {
   double median = 0, p95 = 0, max = 0;
   std::size_t count = 0;
+  /// The median and p95 are estimates from a uniform sample (a run of more values than
+  /// Sample::kDefaultCapacity, math/stats.h); count and max are exact.
+  bool sampled = false;
 };
 
 struct HandSummary {
@@ -231,6 +235,12 @@ inline std::string describe(const HandSummary& h) {
   o += "; jitter (a body's motion turning back from one frame to the next) " + u(h.jitter_body_frames) + " of " +
        u(h.jitter_checked) + " body-frames, free twin " + u(h.twin_jitter_body_frames);
   o += "; clipped frames " + u(h.clipped_frames) + " (TOC < 1e-3 in " + u(h.toc_below_1e3) + "), solve -> sweep rounds " + u(h.substeps);
+  for (const Spread* x : {&h.excess_lag_m, &h.excess_lag_twin_outside_m, &h.model_error_m, &h.free_tracking_error_m, &h.contact_gap_m})
+    if (x->sampled) {
+      o += "; medians and p95 estimated from a uniform sample of " + std::to_string(Sample::kDefaultCapacity) +
+           " values per figure (a longer run; counts and maxima exact)";
+      break;
+    }
   return o;
 }
 

@@ -600,10 +600,12 @@ int main(int argc, char** argv) {
 
   // Measurements.
   RunReport rep;
-  std::vector<double> latency_us, window_latency;
-  std::vector<double> st_contacts, st_assembly, st_solve, st_integrate, st_ccd, st_merge, st_scene;
+  // The run's figures in bounded memory (a lab left running for a day: math/stats.h).
+  Sample latency_us;
+  std::vector<double> window_latency;  // this second's, cleared every line
+  Sample st_contacts, st_assembly, st_solve, st_integrate, st_ccd, st_merge, st_scene;
   double window_pen = 0;
-  std::vector<double> st_total;  // compute time per frame: the stages' own times, no transport
+  Sample st_total;  // compute time per frame: the stages' own times, no transport
   double last_scene_us = 0;
   ResultHash hash;
   std::map<std::uint64_t, FrameHands> pending;          // lock-step: frame -> hands
@@ -653,7 +655,7 @@ int main(int argc, char** argv) {
     if (snap)
       for (const ObjectMotion& o : snap->objects) world.setObjectPose(o.index, o.X);
     if (lat_us > 0) {
-      latency_us.push_back(lat_us);
+      latency_us.add(lat_us);
       window_latency.push_back(lat_us);
     }
     if (stale_rx) ++rep.stale_states;
@@ -662,7 +664,7 @@ int main(int argc, char** argv) {
       return;
     }
     if (!lockstep)
-      st_total.push_back(h.solver_times().contacts_us() + h.solver_times().assembly_us() + h.solver_times().solve_us() +
+      st_total.add(h.solver_times().contacts_us() + h.solver_times().assembly_us() + h.solver_times().solve_us() +
                          h.solver_times().integrate_us() + h.ccd_us() + h.merge_us() + last_scene_us);
     if (!lockstep && h.hand() < C) {  // live: every hand's newest count, summed (lock-step: per frame, below)
       live_contacts[h.hand()] = h.contacts();
@@ -874,7 +876,7 @@ int main(int argc, char** argv) {
         f.states[h.hand()] = h;
         f.have[h.hand()] = 1;
         if (lat > 0) {
-          latency_us.push_back(lat);
+          latency_us.add(lat);
           window_latency.push_back(lat);
         }
       } else {
@@ -922,14 +924,14 @@ int main(int argc, char** argv) {
           for (const msg::Pose& p : hsc.poses()) hash.add(svc::fromWire(p));
       }
       rep.contacts_max = std::max(rep.contacts_max, static_cast<long>(contacts));
-      st_contacts.push_back(c_us);
-      st_assembly.push_back(a_us);
-      st_solve.push_back(s_us);
-      st_integrate.push_back(i_us);
-      st_ccd.push_back(ccd);
-      st_merge.push_back(merge);
-      st_scene.push_back(snap.step_us);
-      st_total.push_back(c_us + a_us + s_us + i_us + ccd + merge + snap.step_us);
+      st_contacts.add(c_us);
+      st_assembly.add(a_us);
+      st_solve.add(s_us);
+      st_integrate.add(i_us);
+      st_ccd.add(ccd);
+      st_merge.add(merge);
+      st_scene.add(snap.step_us);
+      st_total.add(c_us + a_us + s_us + i_us + ccd + merge + snap.step_us);
       pending.erase(it);
       scenes.erase(scenes.begin(), scenes.upper_bound(next_frame));
       targets.eraseThrough(run, next_frame);
@@ -1209,19 +1211,19 @@ int main(int argc, char** argv) {
   rep.replay_span_s = std::chrono::duration<double>(t_last_state - t_first_state).count();
   // Frames per second from counts: fresh frames (every cluster) over first to last fresh state.
   rep.frames_per_s = rep.frames_complete > 1 && rep.replay_span_s > 0 ? static_cast<double>(rep.frames_complete - 1) / rep.replay_span_s : 0.0;
-  rep.latency_median_us = percentile(latency_us, 0.5);
-  rep.latency_p99_us = percentile(latency_us, 0.99);
-  rep.latency_max_us = percentile(latency_us, 1.0);
-  rep.latency_samples = latency_us.size();
+  rep.latency_median_us = percentile(latency_us.values(), 0.5);
+  rep.latency_p99_us = percentile(latency_us.values(), 0.99);
+  rep.latency_max_us = latency_us.max();
+  rep.latency_samples = latency_us.count();
   // step_us as godhand-bench means it: the compute time of a frame (the stages' own times, every
   // hand, the scene), without the transport; the end-to-end figure is latency_us.
-  rep.step_median_us = percentile(st_total, 0.5);
-  rep.step_p99_us = percentile(st_total, 0.99);
-  rep.step_max_us = percentile(st_total, 1.0);
-  rep.stages_us = {{"contacts", percentile(st_contacts, 0.5)}, {"assembly", percentile(st_assembly, 0.5)},
-                   {"solve", percentile(st_solve, 0.5)},       {"integrate", percentile(st_integrate, 0.5)},
-                   {"ccd", percentile(st_ccd, 0.5)},           {"merge", percentile(st_merge, 0.5)},
-                   {"scene", percentile(st_scene, 0.5)}};
+  rep.step_median_us = percentile(st_total.values(), 0.5);
+  rep.step_p99_us = percentile(st_total.values(), 0.99);
+  rep.step_max_us = st_total.max();
+  rep.stages_us = {{"contacts", percentile(st_contacts.values(), 0.5)}, {"assembly", percentile(st_assembly.values(), 0.5)},
+                   {"solve", percentile(st_solve.values(), 0.5)},       {"integrate", percentile(st_integrate.values(), 0.5)},
+                   {"ccd", percentile(st_ccd.values(), 0.5)},           {"merge", percentile(st_merge.values(), 0.5)},
+                   {"scene", percentile(st_scene.values(), 0.5)}};
   rep.margin_m = margin;
   rep.plausibility = metrics->summary();
   rep.have_plausibility = true;

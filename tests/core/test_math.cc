@@ -8,8 +8,10 @@
 #include <limits>
 #include <random>
 #include <vector>
+#include <algorithm>
 
 #include "math/pose.h"
+#include "math/stats.h"
 
 namespace godhand {
 namespace {
@@ -353,3 +355,40 @@ TEST(MathPose, ComposeAndInverse) {
 
 }  // namespace
 }  // namespace godhand
+
+// The bounded sample of a run's figure (math/stats.h): exact up to its capacity; beyond it a
+// uniform sample whose percentiles estimate the exact ones (brute force over the same values),
+// with the count and the maximum exact, the memory held to the capacity, the same sample for the
+// same values.
+TEST(Sample, ExactUpToItsCapacityThenAUniformSampleOfIt) {
+  godhand::Sample small(1000);
+  std::vector<double> all;
+  for (int i = 0; i < 1000; ++i) {
+    const double x = std::sin(0.37 * i);
+    small.add(x);
+    all.push_back(x);
+  }
+  EXPECT_FALSE(small.sampled());
+  EXPECT_EQ(small.values(), all);
+  EXPECT_EQ(small.max(), *std::max_element(all.begin(), all.end()));
+
+  godhand::Sample big(4096), again(4096);
+  std::vector<double> exact;
+  for (int i = 0; i < 1000000; ++i) {
+    const double x = std::fmod(0.6180339887 * i, 1.0) * (i % 7 == 0 ? 10.0 : 1.0);  // a skewed mix
+    big.add(x);
+    again.add(x);
+    exact.push_back(x);
+  }
+  EXPECT_TRUE(big.sampled());
+  EXPECT_EQ(big.count(), 1000000u);
+  EXPECT_EQ(big.values().size(), 4096u);
+  EXPECT_EQ(big.max(), *std::max_element(exact.begin(), exact.end()));
+  EXPECT_EQ(big.values(), again.values());  // deterministic
+  for (const double p : {0.5, 0.95, 0.99}) {
+    // The sample's percentile is within the exact distribution's percentiles p ± 0.03.
+    const double est = godhand::percentile(big.values(), p);
+    EXPECT_GE(est, godhand::percentile(exact, std::max(0.0, p - 0.03))) << p;
+    EXPECT_LE(est, godhand::percentile(exact, std::min(1.0, p + 0.03))) << p;
+  }
+}
