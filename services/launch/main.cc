@@ -1070,9 +1070,11 @@ int main(int argc, char** argv) {
         else if (hl == Watchdog::Health::Silent)
           std::snprintf(b, sizeof b, "%s%s DEAD (silent %.1f s)", rates.empty() ? "" : ", ", s.first.c_str(),
                         watchdog.silentFor(s.first, Clock::now()));
+        else if (hl == Watchdog::Health::Unknown)  // (re)starting: its last status is a former process's
+          std::snprintf(b, sizeof b, "%s%s starting", rates.empty() ? "" : ", ", s.first.c_str());
         else
           std::snprintf(b, sizeof b, "%s%s %.0f Hz %s", rates.empty() ? "" : ", ", s.first.c_str(), s.second.rate_hz(),
-                        hl == Watchdog::Health::Unknown ? "starting" : s.second.state().c_str());
+                        s.second.state().c_str());
         rates += b;
       }
       char pen_text[48], lat_text[128];
