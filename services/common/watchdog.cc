@@ -20,9 +20,18 @@ void Watchdog::shiftOver(Clock::time_point now, bool record) {
   if (last_update_ != Clock::time_point{} && now > last_update_) {
     const auto gap = now - last_update_;
     if (std::chrono::duration<double>(gap).count() > 0.5 * silent_after_) {
-      if (record) pauses_.push_back({seconds(last_update_), std::chrono::duration<double>(gap).count()});
+      // Recorded (and said) only when longer than the limit itself, where it changed a verdict,
+      // and at most kMaxPauses of them (a starved launcher's every loop is such a gap).
+      if (record && std::chrono::duration<double>(gap).count() > silent_after_) {
+        if (pauses_.size() < kMaxPauses) pauses_.push_back({seconds(last_update_), std::chrono::duration<double>(gap).count()});
+        ++pause_count_;
+      }
+      // The credit is the gap less a quarter of the limit: a launcher whose every loop is slow
+      // (0.7 s under load) still ages a dead service by that quarter a loop, so it is found,
+      // later, instead of never.
+      const auto credit = gap - std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(0.25 * silent_after_));
       for (auto& [name, e] : entries_)
-        if (e.last != Clock::time_point{} && !e.silent) e.last = std::min(e.last + gap, now);
+        if (e.last != Clock::time_point{} && !e.silent) e.last = std::min(e.last + credit, now);
     }
   }
   last_update_ = std::max(last_update_, now);

@@ -12,11 +12,13 @@
 // (the launcher's loop calls it every ~20 ms) is time nobody was looking (the launcher stopped
 // or starved, the machine stalled), and the heartbeats of that time may still be in the
 // launcher's sockets. It is not counted against any service: every newest heartbeat is moved on
-// by the gap (a 2.5 s stall of the launcher had it kill and restart all five healthy services).
-// Each such pause is recorded (pauses()).
+// by the gap less a quarter of silent_after (a 2.5 s stall of the launcher had it kill and
+// restart all five healthy services; the quarter keeps a launcher whose every loop is slow
+// finding a dead service, later). Each such pause is recorded (pauses()).
 #pragma once
 
 #include <chrono>
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -52,8 +54,11 @@ class Watchdog {
   /// The caller did not watch from its last update() until `now` on purpose (its own work at the
   /// end of a run): not counted against any service, and not recorded as a pause.
   void resumeAfterOwnWork(Clock::time_point now) { shiftOver(now, false); }
-  /// The watchdog's own pauses (see above), oldest first.
+  /// The watchdog's own pauses longer than silent_after (see above), the first kMaxPauses of them;
+  /// pauseCount() counts them all.
   const std::vector<Pause>& pauses() const { return pauses_; }
+  std::uint64_t pauseCount() const { return pause_count_; }
+  static constexpr std::size_t kMaxPauses = 32;
   double silentAfter() const { return silent_after_; }
 
  private:
@@ -74,6 +79,7 @@ class Watchdog {
   std::vector<Episode> episodes_;
   Clock::time_point last_update_{};
   std::vector<Pause> pauses_;
+  std::uint64_t pause_count_ = 0;
 };
 
 }  // namespace godhand

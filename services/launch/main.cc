@@ -989,9 +989,9 @@ int main(int argc, char** argv) {
     }
     // The watchdog: a service without a heartbeat for silent_after is dead, whatever the reason
     // (this launcher's own pauses not counted: watchdog.h).
-    const size_t pauses_before = watchdog.pauses().size();
+    const std::uint64_t pauses_before = watchdog.pauseCount();
     const std::vector<std::string> silent_now = watchdog.update(Clock::now());
-    if (watchdog.pauses().size() > pauses_before) {
+    if (watchdog.pauseCount() > pauses_before && watchdog.pauseCount() <= Watchdog::kMaxPauses) {
       std::printf("launch: this launcher did not watch for %.1f s (stopped, starved or stalled): not counted against the services\n",
                   watchdog.pauses().back().duration_s);
       std::fflush(stdout);
@@ -1239,6 +1239,7 @@ int main(int argc, char** argv) {
     if (e.end_s >= 0) e.end_s -= off;
   }
   rep.launcher_pauses = watchdog.pauses();
+  rep.launcher_pause_count = watchdog.pauseCount();
   for (Watchdog::Pause& p : rep.launcher_pauses)
     p.start_s -= t_replay == Clock::time_point{} ? 0.0 : std::chrono::duration<double>(t_replay - t_start).count();
   rep.drills = drill_reports;

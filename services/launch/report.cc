@@ -79,6 +79,9 @@ void printSummary(const RunReport& r) {
   for (const Watchdog::Episode& e : r.silent)
     std::printf("  watchdog: %s silent (no heartbeat for > %.1f s) from %s to %s\n", e.service.c_str(), r.silent_after_s,
                 secs(e.start_s).c_str(), e.end_s < 0 ? "the end" : secs(e.end_s).c_str());
+  if (r.launcher_pause_count > r.launcher_pauses.size())
+    std::printf("  this launcher did not watch for more than %.1f s %llu times (the first %zu below): it was starved or stalled\n",
+                r.silent_after_s, static_cast<unsigned long long>(r.launcher_pause_count), r.launcher_pauses.size());
   for (const Watchdog::Pause& p : r.launcher_pauses)
     std::printf("  this launcher did not watch for %.1f s from %s (stopped, starved or stalled): not counted against the "
                 "services; what it missed meanwhile may be counted lost or late\n",
@@ -183,7 +186,7 @@ nlohmann::json reportJson(const RunReport& r) {
   nlohmann::json pauses = nlohmann::json::array();
   for (const Watchdog::Pause& p : r.launcher_pauses) pauses.push_back({{"from_s", p.start_s}, {"duration_s", p.duration_s}});
   j["watchdog"] = {{"silent_after_s", r.silent_after_s}, {"silent", silent}, {"restarted", r.watchdog_restarts},
-                   {"launcher_pauses", pauses}};
+                   {"launcher_pauses", pauses}, {"launcher_pause_count", r.launcher_pause_count}};
   j["late_joiner"] = {{"hand_states", r.late_states}, {"scene_description", r.late_description}, {"ms", orNull(r.late_ms)}};
   j["shm_segments_left"] = r.shm_left;
   j["shm_segments_removed"] = r.shm_removed;

@@ -94,7 +94,8 @@ struct RunReport {
   std::vector<Watchdog::Episode> silent;  ///< watchdog episodes (seconds since the replay start)
   double silent_after_s = 0;
   std::vector<std::string> watchdog_restarts;
-  std::vector<Watchdog::Pause> launcher_pauses;  ///< this launcher's own stalls (seconds since the replay start)
+  std::vector<Watchdog::Pause> launcher_pauses;  ///< this launcher's own stalls (seconds since the replay start), the first 32
+  std::uint64_t launcher_pause_count = 0;        ///< all of them
   std::vector<DrillReport> drills;
   double stale_first_s = -1, stale_last_s = -1, resumed_s = -1, scene_back_s = -1;
   double scene_restart_jump_m = 0;   ///< largest displacement of an object at rest in both a dead scene's last state and its successor's first seen
