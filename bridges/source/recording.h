@@ -21,15 +21,15 @@ namespace godhand::bridges {
 
 struct LoadedRecording {
   std::vector<TrackerFrame> frames;  ///< world frame, as openSource would deliver them
-  double mean_rate_hz = 0.0;         ///< (frames − 1) / duration; 0 for < 2 frames
+  double mean_rate_hz = 0.0;         ///< (frames − 1) / duration (gaps left out, see below); 0 for < 2 frames
   Vec3 mean_palm_W = Vec3::Zero();   ///< mean palm position over all hands of all frames
   std::string format;                ///< "leap", "dtrack", "raw"
   std::string rejections;            ///< one line: what was dropped, by reason
   bool has_right = false, has_left = false;
-  /// Frames without hands put into pauses of the timestamps (intervals of at least 0.1 s and
-  /// more than twice the median: a tracker that wrote nothing while it saw no hand), and how many
-  /// pauses; included in frames and in the rate.
-  std::uint64_t filled_frames = 0, pauses = 0;
+  /// Gaps in the timestamps (intervals of at least 0.1 s and over twice the median), left out of
+  /// the rate; of them the silences (1 s or more, as a live source's --silence) filled with
+  /// frames without hands at the rate (included in frames), and how many frames that took.
+  std::uint64_t gaps = 0, pauses = 0, filled_frames = 0;
 };
 
 /// Loads every frame of a recording file of any supported format (detected by content).

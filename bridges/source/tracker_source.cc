@@ -174,53 +174,89 @@ double meanRate(const std::vector<TrackerFrame>& frames) {
   return dt > 0.0 ? static_cast<double>(frames.size() - 1) / dt : 0.0;
 }
 
-/// A tracker that writes nothing while no hand is seen leaves a pause in the timestamps. Replayed
-/// frame after frame, the hand would be stepped through it as if one period had passed, never
-/// lost (no re-acquisition), and the mean rate would be wrong. So a pause (an interval of at least
-/// kPauseS and more than twice the median one) is filled with frames without hands at the median
-/// period, as a tracker that reports every frame would have sent them. Dropped frames (a Leap
-/// recording's 2–3 periods) are shorter than the pipeline's 0.1 s loss, and are left as they are.
+/// The timing of a replay. A gap in the timestamps (an interval of at least kGapS and more than
+/// twice the median: frames the tracker did not write, or dropped as bad input) is not a period:
+/// the rate is the mean over the other intervals. (Without gaps, as the bundled recordings'
+/// dropped frames of 2–3 intervals, it is the plain mean rate, bit for bit.) A gap of
+/// kSilenceS or more is what a live source's silence is (godhand-ingest --silence: its hands
+/// are published untracked): the replay fills it with frames without hands at that rate, so that
+/// the hand is lost and re-acquired as it would be live. A shorter gap is stepped as one frame,
+/// as a live source's late frame would be.
 struct PauseFill {
-  std::uint64_t pauses = 0, frames = 0;
+  std::uint64_t gaps = 0;      ///< intervals left out of the rate
+  std::uint64_t pauses = 0;    ///< gaps of kSilenceS or more, filled
+  std::uint64_t frames = 0;    ///< frames without hands put into them
+  std::vector<unsigned char> is_filled;  ///< per frame of the replay (empty: none filled)
 };
-constexpr double kPauseS = 0.1;
-constexpr std::uint64_t kMaxFilledFrames = 360000;  // an hour at 100 Hz
+constexpr double kGapS = 0.1;
+constexpr double kSilenceS = 1.0;  // godhand-ingest's --silence default
+constexpr std::uint64_t kMaxFilledFrames = 2000000;  // ~130 MB of empty frames
 
-PauseFill fillPauses(std::vector<TrackerFrame>* frames, const std::string& path) {
-  PauseFill fill;
-  if (frames->size() < 3) return fill;
+double replayRate(const std::vector<TrackerFrame>& frames, PauseFill* fill) {
+  if (frames.size() < 3) return meanRate(frames);
   std::vector<std::int64_t> iv;
-  iv.reserve(frames->size() - 1);
-  for (size_t i = 1; i < frames->size(); ++i) iv.push_back((*frames)[i].timestamp_us - (*frames)[i - 1].timestamp_us);
-  std::nth_element(iv.begin(), iv.begin() + static_cast<std::ptrdiff_t>(iv.size() / 2), iv.end());
-  const std::int64_t period = iv[iv.size() / 2];
-  if (period <= 0) return fill;
-  const std::int64_t pause = std::max<std::int64_t>(static_cast<std::int64_t>(kPauseS * 1e6), 2 * period + 1);
+  iv.reserve(frames.size() - 1);
+  for (size_t i = 1; i < frames.size(); ++i) iv.push_back(frames[i].timestamp_us - frames[i - 1].timestamp_us);
+  std::vector<std::int64_t> sorted = iv;
+  std::nth_element(sorted.begin(), sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2), sorted.end());
+  const std::int64_t median = sorted[sorted.size() / 2];
+  if (median <= 0) return meanRate(frames);
+  const std::int64_t gap = std::max<std::int64_t>(static_cast<std::int64_t>(kGapS * 1e6), 2 * median + 1);
+  long double kept_us = 0;
+  std::uint64_t kept = 0;
+  for (const std::int64_t d : iv) {
+    if (d >= gap) {
+      ++fill->gaps;
+    } else {
+      kept_us += static_cast<long double>(d);
+      ++kept;
+    }
+  }
+  if (fill->gaps == 0 || kept == 0 || kept_us <= 0) return meanRate(frames);
+  return static_cast<double>(static_cast<long double>(kept) / (kept_us * 1e-6L));
+}
+
+void fillSilences(std::vector<TrackerFrame>* frames, double rate_hz, const std::string& path, PauseFill* fill) {
+  if (!(rate_hz > 0.0) || frames->size() < 2) return;
+  const long double period_us = 1e6L / static_cast<long double>(rate_hz);
+  const std::int64_t silence = static_cast<std::int64_t>(std::max<long double>(kSilenceS * 1e6L, 2 * period_us));
   std::vector<TrackerFrame> out;
+  std::vector<unsigned char> is_filled;
   for (size_t i = 0; i < frames->size(); ++i) {
     if (i > 0) {
       const std::int64_t t0 = (*frames)[i - 1].timestamp_us, gap = (*frames)[i].timestamp_us - t0;
-      if (gap >= pause) {
-        const std::uint64_t missing = static_cast<std::uint64_t>((gap + period / 2) / period) - 1;
-        if (fill.frames + missing > kMaxFilledFrames)
-          throw SourceError(path + ": pauses in the timestamps (the last at " + std::to_string(t0) + " us, " +
+      if (gap >= silence) {
+        const long double n = std::floor(static_cast<long double>(gap) / period_us + 0.5L) - 1;
+        if (n > static_cast<long double>(kMaxFilledFrames - fill->frames))
+          throw SourceError(path + ": silences in the timestamps (the last at " + std::to_string(t0) + " us, " +
                             std::to_string(gap / 1000) + " ms) would take more than " + std::to_string(kMaxFilledFrames) +
-                            " frames without hands at the recording's period of " + std::to_string(period) +
-                            " us to replay; cut the recording");
-        if (out.empty()) out.assign(frames->begin(), frames->begin() + static_cast<std::ptrdiff_t>(i));
+                            " frames without hands at the recording's rate to replay; cut the recording");
+        const std::uint64_t missing = n > 0 ? static_cast<std::uint64_t>(n) : 0;
+        if (fill->pauses == 0) {  // the frames before the first: moved, not copied
+          out.reserve(frames->size() + missing);
+          for (size_t k = 0; k < i; ++k) out.push_back(std::move((*frames)[k]));
+          is_filled.assign(i, 0);
+        }
         for (std::uint64_t k = 1; k <= missing; ++k) {
           TrackerFrame f;
-          f.timestamp_us = t0 + static_cast<std::int64_t>(k) * gap / static_cast<std::int64_t>(missing + 1);
+          f.timestamp_us = t0 + static_cast<std::int64_t>(static_cast<long double>(gap) * static_cast<long double>(k) /
+                                                          static_cast<long double>(missing + 1));
           out.push_back(std::move(f));
+          is_filled.push_back(1);
         }
-        ++fill.pauses;
-        fill.frames += missing;
+        ++fill->pauses;
+        fill->frames += missing;
       }
     }
-    if (fill.pauses) out.push_back(std::move((*frames)[i]));
+    if (fill->pauses) {
+      out.push_back(std::move((*frames)[i]));
+      is_filled.push_back(0);
+    }
   }
-  if (fill.pauses) frames->swap(out);
-  return fill;
+  if (fill->pauses) {
+    frames->swap(out);
+    fill->is_filled.swap(is_filled);
+  }
 }
 
 /// A replay of frames decoded up front (every file format).
@@ -233,8 +269,8 @@ class FrameReplay : public TrackerSource {
     for (TrackerFrame& f : frames_) plausible.apply(&f);
     plausible.addTo(&base_);
     if (frames_.empty()) throw SourceError(path_ + ": no usable frames (" + base_.detail + ")");
-    fill_ = fillPauses(&frames_, path_);
-    rate_ = meanRate(frames_);
+    rate_ = replayRate(frames_, &fill_);
+    fillSilences(&frames_, rate_, path_, &fill_);
     if (!(rate_ > 1.0 && rate_ <= 20000.0)) {  // up to 20 kHz: 10 kHz streams (dt 0.1 ms) are real
       char buf[200];
       if (frames_.size() < 2)
@@ -252,12 +288,16 @@ class FrameReplay : public TrackerSource {
       for (const TrackedHand& h : f.hands) (h.right ? right_ : left_) = true;
   }
   std::string describe() const override {
-    char buf[160];
-    if (fill_.pauses)
-      std::snprintf(buf, sizeof buf, " (%zu frames, of them %llu without hands filled into %llu pause(s) of the timestamps, %.2f Hz)",
-                    end_, static_cast<unsigned long long>(fill_.frames), static_cast<unsigned long long>(fill_.pauses), rate_);
-    else
-      std::snprintf(buf, sizeof buf, " (%zu frames, %.2f Hz)", end_, rate_);
+    char buf[200];
+    const std::uint64_t filled = filledIn(end_);
+    int n = std::snprintf(buf, sizeof buf, " (%zu frames, %.2f Hz", end_, rate_);
+    if (fill_.gaps)
+      n += std::snprintf(buf + n, sizeof buf - static_cast<size_t>(n), ", %llu gap(s) in the timestamps left out of the rate",
+                         static_cast<unsigned long long>(fill_.gaps));
+    if (filled)
+      n += std::snprintf(buf + n, sizeof buf - static_cast<size_t>(n), ", %llu of the frames without hands in silences of 1 s or more",
+                         static_cast<unsigned long long>(filled));
+    std::snprintf(buf + n, sizeof buf - static_cast<size_t>(n), ")");
     return what_ + " " + path_ + buf;
   }
   double nominalRate() const override { return rate_; }
@@ -275,6 +315,12 @@ class FrameReplay : public TrackerSource {
   }
   const std::vector<TrackerFrame>& all() const { return frames_; }
   const PauseFill& filled() const { return fill_; }
+  /// Frames filled into silences among the first `n`.
+  std::uint64_t filledIn(size_t n) const {
+    std::uint64_t c = 0;
+    for (size_t i = 0; i < n && i < fill_.is_filled.size(); ++i) c += fill_.is_filled[i];
+    return c;
+  }
 
  private:
   PauseFill fill_;
@@ -668,6 +714,7 @@ LoadedRecording loadRecording(const std::string& path, const SourceOptions& opti
   out.rejections = r->stats().detail;
   out.filled_frames = r->filled().frames;
   out.pauses = r->filled().pauses;
+  out.gaps = r->filled().gaps;
   std::size_t n = 0;
   for (const TrackerFrame& f : out.frames)
     for (const TrackedHand& h : f.hands) {

@@ -601,10 +601,11 @@ int main(int argc, char** argv) {
   std::printf("godhand-bench: %s (%s), %zu frames at %.1f Hz, %zu hand(s), scene '%s' (%lld God-collision triangles)\n",
               args.recording.c_str(), rec.format.c_str(), n_frames, rate, H, scene.name.c_str(), scene.god_triangles);
   if (!rec.rejections.empty()) std::printf("  recording: %s\n", rec.rejections.c_str());
-  if (rec.pauses)
-    std::printf("  recording: %llu of the %zu frames are without hands, filled into %llu pause(s) of the timestamps "
-                "(0.1 s or more, over twice the median period: the tracker wrote nothing, so no hand was seen)\n",
-                static_cast<unsigned long long>(rec.filled_frames), rec.frames.size(), static_cast<unsigned long long>(rec.pauses));
+  if (rec.gaps)
+    std::printf("  recording: %llu gap(s) in the timestamps (0.1 s or more, over twice the median interval) left out of "
+                "the rate; %llu of them silences of 1 s or more (as a live source's), filled with %llu frames without hands\n",
+                static_cast<unsigned long long>(rec.gaps), static_cast<unsigned long long>(rec.pauses),
+                static_cast<unsigned long long>(rec.filled_frames));
   for (const SceneObject& o : scene.objects)
     if (!args.meshes.empty())
       std::printf("  mesh %s: scale %.6g, then translation (%.4f, %.4f, %.4f) m, placed at (%.4f, %.4f, %.4f) m\n",
@@ -670,6 +671,7 @@ int main(int argc, char** argv) {
     j["recording_format"] = rec.format;
     j["recording_rejections"] = rec.rejections;
     j["recording_filled_frames"] = rec.filled_frames;
+    j["recording_gaps"] = rec.gaps;
     j["scene"] = scene.name;
     j["frames"] = n_frames;
     j["hands"] = H;
