@@ -588,9 +588,15 @@ std::string detectFormat(const std::string& path) {
   while (i < head.size() && std::isspace(static_cast<unsigned char>(head[i]))) ++i;
   if (i == head.size()) throw SourceError(path + (head.empty() ? ": empty file" : ": only white space"));
   if (head[i] == '{') {
-    const size_t nl = head.find('\n');
+    // The first line whole (a JSON Lines frame of two OpenXR hands is ~6 KB), up to 1 MB.
+    std::string first = head;
+    while (first.find('\n') == std::string::npos && first.size() < (1u << 20) && in) {
+      in.read(buf, sizeof buf);
+      first.append(buf, static_cast<size_t>(in.gcount()));
+    }
+    const size_t nl = first.find('\n');
     if (nl != std::string::npos) {
-      const std::string first = head.substr(0, nl);
+      first.resize(nl);
       const std::string f = skeleton::jsonlFormat(first);
       if (!f.empty()) return f;
       // A frame where the header belongs: JSON Lines whose header line is missing (read as Leap

@@ -10,8 +10,6 @@
 
 namespace godhand {
 
-namespace {
-/// The spread of one or more hands' samples together (their kept values pooled; count and max exact).
 Spread spreadOf(const std::vector<const Sample*>& samples) {
   Spread s;
   std::vector<double> v;
@@ -25,10 +23,34 @@ Spread spreadOf(const std::vector<const Sample*>& samples) {
     v.insert(v.end(), x->values().begin(), x->values().end());
   }
   if (v.empty()) return s;
-  s.median = percentile(v, 0.5);
-  s.p95 = percentile(v, 0.95);
+  if (!s.sampled) {
+    s.median = percentile(v, 0.5);
+    s.p95 = percentile(v, 0.95);
+    return s;
+  }
+  // Sampled hands pooled: each kept value stands for count / kept values of its hand.
+  std::vector<std::pair<double, double>> w;
+  for (const Sample* x : samples)
+    if (!x->empty()) {
+      const double weight = static_cast<double>(x->count()) / static_cast<double>(x->values().size());
+      for (const double value : x->values()) w.emplace_back(value, weight);
+    }
+  std::sort(w.begin(), w.end());
+  double total = 0.0;
+  for (const auto& e : w) total += e.second;
+  auto at = [&](double p) {
+    double cum = 0.0;
+    for (const auto& e : w) {
+      cum += e.second;
+      if (cum >= p * total) return e.first;
+    }
+    return w.back().first;
+  };
+  s.median = at(0.5);
+  s.p95 = at(0.95);
   return s;
 }
+namespace {
 double maxBodyDistance(const std::vector<Pose>& a, const std::vector<Pose>& b) {
   double m = 0.0;
   for (size_t i = 0; i < a.size() && i < b.size(); ++i) m = std::max(m, (a[i].p - b[i].p).norm());

@@ -80,6 +80,11 @@ struct Spread {
   bool sampled = false;
 };
 
+/// The spread of one or more samples together (several hands' figure for "all"): count and max
+/// exact; median and p95 exact when none is sampled, else each kept value weighted by the count
+/// it stands for (a sampled hand's values are not outvoted by an exact hand's).
+Spread spreadOf(const std::vector<const Sample*>& samples);
+
 struct HandSummary {
   std::string name;
   std::uint64_t frames = 0, tracked = 0, started = 0, held = 0;

@@ -419,12 +419,22 @@ TEST(Skeleton, JsonLinesMistakesAreNamed) {
   };
   std::string body;
   for (const std::string& x : lines) body += x + "\n";
-  // No header: the cause, not "not valid JSON ... line 2".
-  try {
-    bridges::loadRecording(file("noheader.jsonl", body));
-    ADD_FAILURE() << "read without its header";
-  } catch (const bridges::SourceError& e) {
-    EXPECT_NE(std::string(e.what()).find("the header line is missing"), std::string::npos) << e.what();
+  // No header: the cause, not "not valid JSON ... line 2"; also when the first line is longer
+  // than the first read (two hands: ~6 KB).
+  std::string two_hands = lines[0];
+  {
+    const size_t open = two_hands.find("[{"), close = two_hands.rfind("}]");
+    const std::string hand = two_hands.substr(open + 1, close - open);
+    two_hands.insert(close + 1, "," + hand);
+  }
+  ASSERT_GT(two_hands.size(), 4096u);
+  for (const std::string& text : {body, two_hands + "\n" + body}) {
+    try {
+      bridges::loadRecording(file("noheader.jsonl", text));
+      ADD_FAILURE() << "read without its header";
+    } catch (const bridges::SourceError& e) {
+      EXPECT_NE(std::string(e.what()).find("the header line is missing"), std::string::npos) << e.what();
+    }
   }
   // A byte-order mark: the same frames as without.
   const auto plain = bridges::loadRecording(file("plain.jsonl", header + body));

@@ -391,4 +391,11 @@ TEST(Sample, ExactUpToItsCapacityThenAUniformSampleOfIt) {
     EXPECT_GE(est, godhand::percentile(exact, std::max(0.0, p - 0.03))) << p;
     EXPECT_LE(est, godhand::percentile(exact, std::min(1.0, p + 0.03))) << p;
   }
+  // A drifting figure (a ramp): keeping the first or the last values would be far off; a
+  // uniform sample's median is the middle of the run.
+  godhand::Sample ramp(4096);
+  for (int i = 0; i < 1000000; ++i) ramp.add(i * 1e-6);
+  EXPECT_NEAR(godhand::percentile(ramp.values(), 0.5), 0.5, 0.03);
+  EXPECT_NEAR(godhand::percentile(ramp.values(), 0.05), 0.05, 0.02);
+  EXPECT_NEAR(godhand::percentile(ramp.values(), 0.95), 0.95, 0.02);
 }
