@@ -24,9 +24,10 @@ SourceOptions sourceOptions(const CalibrationText& t, std::int64_t frames) {
   }
   if (t.max_datagram < 0 || t.max_datagram > 65507) throw SourceError("max datagram must be in 1..65507 bytes (0: 32768)");
   if (t.max_datagram > 0) o.max_datagram_bytes = static_cast<std::size_t>(t.max_datagram);
-  if (t.volume_m < 0.0 || t.volume_m > 1e4) throw SourceError("tracking volume must be in (0, 10000] m (0: 50 m)");
+  // (Up to 1e9: a value that large switches the check off, as godhand-bench always allowed.)
+  if (t.volume_m < 0.0 || t.volume_m > 1e9) throw SourceError("tracking volume must be in (0, 1e9] m (0: 50 m)");
   if (t.volume_m > 0.0) o.max_abs_position_m = t.volume_m;
-  if (t.max_speed < 0.0 || t.max_speed > 1e6) throw SourceError("max speed must be in (0, 1e6] m/s (0: 30 m/s)");
+  if (t.max_speed < 0.0 || t.max_speed > 1e9) throw SourceError("max speed must be in (0, 1e9] m/s (0: 30 m/s)");
   if (t.max_speed > 0.0) o.max_speed_mps = t.max_speed;
   return o;
 }

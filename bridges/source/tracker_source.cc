@@ -86,12 +86,15 @@ class Plausibility {
       if (!in) ++outside;
     }
     // Two hands of one side in a frame (a second user, or a tracker's mix-up): the one nearest
-    // that side's last hand goes on (the most confident where there is none yet); the others are
-    // counted as what they are, not as jumps of the one hand.
+    // that side's last hand of the last 0.5 s goes on (the window the jump check looks back);
+    // without one, the most confident (as handOfSide picks). The others are counted as what they
+    // are, not as jumps of the one hand.
     std::vector<unsigned char> chosen(inside);
     for (const bool right : {false, true}) {
       int best = -1, n = 0;
-      const Last& l = last_[right ? 1 : 0];
+      const Last& last = last_[right ? 1 : 0];
+      const std::int64_t age_us = f->timestamp_us - last.t_us;
+      const Last l = last.valid && age_us >= 0 && age_us <= 500000 ? last : Last{};
       for (size_t i = 0; i < f->hands.size(); ++i) {
         const TrackedHand& h = f->hands[i];
         if (!inside[i] || h.right != right) continue;

@@ -9,7 +9,8 @@
 namespace godhand {
 
 inline nlohmann::json toJson(const Spread& s) {
-  return nlohmann::json{{"median", s.median}, {"p95", s.p95}, {"max", s.max}, {"count", s.count}};
+  // "estimated": the median and p95 come from a uniform sample of a longer run (count and max exact).
+  return nlohmann::json{{"median", s.median}, {"p95", s.p95}, {"max", s.max}, {"count", s.count}, {"estimated", s.sampled}};
 }
 
 inline nlohmann::json toJson(const HandSummary& h) {

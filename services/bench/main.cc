@@ -251,8 +251,8 @@ Args parseArgs(int argc, char** argv) {
     else if (f == "--contact-margin") a.contact_margin = parseDouble(f, value(), 0.0, 1e-2);
     else if (f == "--push-out") a.push_out = parseDouble(f, value(), 0.0, 1.0);
     else if (f == "--hand-map" || f == "--hand-sides") a.calibration.hand_map = value();
-    else if (f == "--tracking-volume") a.calibration.volume_m = parseDouble(f, value(), 1e-3, 1e4);
-    else if (f == "--max-speed") a.calibration.max_speed = parseDouble(f, value(), 1e-3, 1e6);
+    else if (f == "--tracking-volume") a.calibration.volume_m = parseDouble(f, value(), 1e-3, 1e9);
+    else if (f == "--max-speed") a.calibration.max_speed = parseDouble(f, value(), 1e-3, 1e9);
     else if (f == "--solver") {
       const std::string s = value();
       if (s == "exact") a.solver = SolverKind::Exact;

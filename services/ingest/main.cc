@@ -101,8 +101,8 @@ int main(int argc, char** argv) {
     ::malloc_trim(0);  // a recording's JSON document is freed by now: give its pages back (glibc keeps them)
     if (!source->live()) {
       // (Live, the services step at the replay's wall-clock rate: the recording's times --speed.)
-      const double replay_hz = source->nominalRate() * (service.lockstep() ? 1.0 : speed);
-      const std::string mismatch = svc::replayRateMismatch(common.frame_rate, replay_hz, source_spec);
+      const std::string mismatch =
+          svc::replayRateMismatch(common.frame_rate, source->nominalRate(), service.lockstep() ? 1.0 : speed, source_spec);
       if (!mismatch.empty()) cli.fail(mismatch);
     }
     if (source->live()) {

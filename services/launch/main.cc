@@ -326,7 +326,7 @@ int main(int argc, char** argv) {
       if (!(rate > 0)) cli.fail("--source " + source_uri + ": give --frame-rate HZ (the lab names no recording)");
     } else {
       auto src = bridges::openSource(lab.recording, frames);
-      const std::string mismatch = svc::replayRateMismatch(live_rate, src->nominalRate(), lab.recording);
+      const std::string mismatch = svc::replayRateMismatch(live_rate, src->nominalRate(), 1.0, lab.recording);
       if (!mismatch.empty()) cli.fail(mismatch);
       rate = src->nominalRate();
       n_frames = src->remaining();
@@ -615,6 +615,7 @@ int main(int argc, char** argv) {
   // resting on an object the newest state has moved is not a penetration of the method.
   std::map<std::uint64_t, SceneSnapshot> recent_scenes;
   FrameBook<msg::HandTarget> targets(C);  // (ingest run, frame) -> per cluster
+  std::uint64_t tracked_targets_seen = 0;  // HandTargets with a tracked hand (the "no hand tracked" verdict's check)
   std::uint64_t next_frame = 1;
   std::uint64_t last_scene_step = 0;
   std::vector<unsigned char> hand_stale(C, 0);
@@ -677,8 +678,10 @@ int main(int argc, char** argv) {
     if (h.started_inside()) ++rep.inside;
     if (h.flags() & kFlagSolverFailed) ++rep.solver_failures;
     if (h.flags() & kFlagSolverInexact) ++rep.inexact;
-    if (!h.started()) return;
-    if (scene_down) {
+    // Penetration and joint gap are of started hands only; the plausibility metrics take every
+    // state (an unstarted hand is what "never started" is made of).
+    if (!h.started()) {
+    } else if (scene_down) {
       ++rep.penetration_unscored;  // the scene's last poses are not where its objects are now
     } else {
       double pen = 0;
@@ -717,22 +720,23 @@ int main(int argc, char** argv) {
       window_pen = std::max(window_pen, pen);
     }
     // The resolver's figure, and measured here from the poses (a second computation, not trust).
-    double gap = h.joint_gap();
-    if (h.hand() < C && h.poses().size() == models[h.hand()].bodies.size()) {
+    double gap = h.started() ? h.joint_gap() : 0.0;
+    if (h.started() && h.hand() < C && h.poses().size() == models[h.hand()].bodies.size()) {
       gap_poses.resize(h.poses().size());
       for (std::size_t b = 0; b < h.poses().size(); ++b) gap_poses[b] = svc::fromWire(h.poses()[b]);
       gap = std::max(gap, jointErrors(models[h.hand()], gap_poses.data()).gap);
     }
     rep.joint_gap_max_m = std::max(rep.joint_gap_max_m, gap);
-    if (!scene_down && h.hand() < C && h.poses().size() == models[h.hand()].bodies.size()) {
+    if (!scene_down && h.hand() < C && (!h.started() || h.poses().size() == models[h.hand()].bodies.size())) {
       const std::size_t c = h.hand();
       HandSample s;
       s.started = h.started();
       s.tracked = h.tracked();
       s.held = h.held();
-      m_poses[c].resize(h.poses().size());
-      for (std::size_t b = 0; b < h.poses().size(); ++b) m_poses[c][b] = svc::fromWire(h.poses()[b]);
-      s.X = m_poses[c].data();
+      m_poses[c].resize(models[c].bodies.size());
+      if (h.started())
+        for (std::size_t b = 0; b < h.poses().size(); ++b) m_poses[c][b] = svc::fromWire(h.poses()[b]);
+      s.X = h.started() ? m_poses[c].data() : nullptr;
       s.loaded = h.loaded();
       s.clipped = h.clipped();
       s.toc = h.toc();
@@ -741,7 +745,7 @@ int main(int argc, char** argv) {
       HandInput in;
       if (const msg::HandTarget* tp = targets.find(h.stamp().run(), h.stamp().frame(), c)) {
         const msg::HandTarget& t = *tp;
-        if (t.tracked() && t.targets().size() == m_poses[c].size() && t.driven().size() == m_poses[c].size()) {
+        if (t.tracked() && t.targets().size() == models[c].bodies.size() && t.driven().size() == models[c].bodies.size()) {
           m_targets[c].resize(t.targets().size());
           m_driven[c].resize(t.driven().size());
           for (std::size_t b = 0; b < t.targets().size(); ++b) {
@@ -819,6 +823,7 @@ int main(int argc, char** argv) {
         }
         if (t.stamp().run() == replay_run) replay_frame = std::max<std::uint64_t>(replay_frame, t.stamp().frame());
       }
+      if (t.tracked()) ++tracked_targets_seen;
       targets.put(t.stamp().run(), t.stamp().frame(), t.hand(), t);  // (a hand beyond the lab's: ignored)
     }
     msg::SceneState ss;
@@ -1273,6 +1278,11 @@ int main(int argc, char** argv) {
     // The plausibility rule of godhand-bench's --check, in lock-step (every frame is seen; live
     // runs lose frames, so their windows are figures, not a verdict).
     std::string why;
+    // The metrics saw no tracked hand although tracked targets came: the states could not be
+    // scored against them (the scene down, the targets late), which is not the source's fault.
+    if (rep.plausibility.all.tracked == 0 && tracked_targets_seen > 0 && !rep.plausibility.failure.empty())
+      rep.plausibility.failure = "no hand state could be scored against its targets (" + std::to_string(tracked_targets_seen) +
+                                 " tracked HandTargets arrived; the scene down or the targets late?)";
     if (lockstep && !plausible(rep.plausibility, &why)) {
       rep.verdict.ok = false;
       rep.verdict.reasons.push_back("not plausible: " + why);

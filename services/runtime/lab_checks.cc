@@ -47,15 +47,17 @@ bridges::CalibrationText labCalibration(const LabConfig& lab) {
   return c;
 }
 
-std::string replayRateMismatch(double given_hz, double recording_hz, const std::string& recording) {
-  if (!(given_hz > 0.0) || std::abs(given_hz - recording_hz) <= 0.01 * recording_hz) return "";
-  auto hz = [](double v) {
+std::string replayRateMismatch(double given_hz, double recording_hz, double speed, const std::string& recording) {
+  const double replay_hz = recording_hz * speed;
+  if (!(given_hz > 0.0) || std::abs(given_hz - replay_hz) <= 0.01 * replay_hz) return "";
+  auto num = [](double v) {
     char buf[32];
-    std::snprintf(buf, sizeof buf, "%.6g Hz", v);
+    std::snprintf(buf, sizeof buf, "%.6g", v);
     return std::string(buf);
   };
-  return "--frame-rate " + hz(given_hz) + ": " + recording + " replays at its own rate, " + hz(recording_hz) +
-         " here (leave --frame-rate out for a recording)";
+  return "--frame-rate " + num(given_hz) + " Hz: " + recording + " replays at " + num(replay_hz) + " Hz" +
+         (speed != 1.0 ? " here (its " + num(recording_hz) + " Hz times --speed " + num(speed) + ")" : std::string()) +
+         ": the services step at the replay's rate (godhand-launch gives them that; by hand, give each the same)";
 }
 
 }  // namespace godhand::svc

@@ -27,8 +27,8 @@ bridges::CalibrationText labCalibration(const LabConfig& lab);
 /// A recording replays at its own rate (live: times --speed), and the services that step
 /// (solvers, scene, resolver) take --frame-rate as the period of every step: a --frame-rate given
 /// for a recording that is not that rate (beyond 1 %) would step every frame with the wrong
-/// period. recording_hz: the replay's rate. "" when it fits (or none was given: given_hz <= 0),
+/// period. "" when given_hz is recording_hz × speed within 1 % (or none was given: given_hz <= 0),
 /// else the one-line reason.
-std::string replayRateMismatch(double given_hz, double recording_hz, const std::string& recording);
+std::string replayRateMismatch(double given_hz, double recording_hz, double speed, const std::string& recording);
 
 }  // namespace godhand::svc

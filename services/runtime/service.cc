@@ -48,7 +48,7 @@ Service::Service(std::string name, const CommonOptions& options, const Cli& cli,
   if (!(opt_.status_period_s > 0.0 && opt_.status_period_s < 60.0)) cli.fail("--status-period must be in (0, 60) s");
   if (!(opt_.frame_rate >= 0.0 && opt_.frame_rate <= 20000.0)) cli.fail("--frame-rate must be in (0, 20000] Hz");
   frame_rate_ = opt_.frame_rate;
-  if (frame_rate_ == 0.0 && (steps || !lab_.recording.empty())) {
+  if (frame_rate_ == 0.0 && steps) {  // (the ingest steps nothing: it need not read the lab's recording)
     if (lab_.recording.empty()) cli.fail("--frame-rate is required: the lab names no recording");
     try {
       frame_rate_ = recordingFrameRate(lab_.recording);

@@ -360,14 +360,17 @@ TEST(Skeleton, ASecondUsersHandOfTheSameSideIsCountedAsSuch) {
       other.X_W_palm.p += Vec3(1.0, 0, 0);
       for (auto& finger : other.joints_W)
         for (Vec3& j : finger) j += Vec3(1.0, 0, 0);
-      auto hand = [&](const leap::TrackedHand& x, int id) {
+      auto hand = [&](const leap::TrackedHand& x, int id, double confidence) {
         std::ostringstream s;
         s.precision(17);
-        s << "{\"side\": \"right\", \"id\": " << id << ", \"active\": true, \"confidence\": 1, \"joints\": " << jointsJson(xrJointsOf(x)) << "}";
+        s << "{\"side\": \"right\", \"id\": " << id << ", \"active\": true, \"confidence\": " << confidence
+          << ", \"joints\": " << jointsJson(xrJointsOf(x)) << "}";
         return s.str();
       };
+      // The other user's hand is listed first in the first frame (and every other one), and is
+      // less confident: the first frame goes by confidence, the rest by nearness.
       a << "{\"time_ns\": " << f.timestamp_us * 1000 << ", \"hands\": ["
-        << (i % 2 ? hand(other, 3) + "," + hand(*h, 1) : hand(*h, 1) + "," + hand(other, 3)) << "]}\n";
+        << (i % 2 == 0 ? hand(other, 3, 0.5) + "," + hand(*h, 1, 1.0) : hand(*h, 1, 1.0) + "," + hand(other, 3, 0.5)) << "]}\n";
       ++i;
     }
   }

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdint>
 
+#include "runtime/lab_checks.h"
 #include "runtime/live_merge.h"
 #include "runtime/lockstep_gate.h"
 
@@ -192,4 +193,17 @@ TEST(LiveMerge, RepublishesHeldHandsWhenNothingComesAndNeverWithoutAScene) {
   m.published(d, T0 + 251ms);
   EXPECT_EQ(m.decide(true, T0 + 400ms).kind, M::Decision::Wait);
   EXPECT_EQ(m.decide(false, T0 + 10s).kind, M::Decision::Wait);  // never without a scene
+}
+
+// A --frame-rate given with a recording must be the replay's rate (the recording's, times
+// --speed live), within 1 %: the services step every frame with its period.
+TEST(LabChecks, AFrameRateThatIsNotTheReplaysIsRefused) {
+  EXPECT_EQ(godhand::svc::replayRateMismatch(0.0, 113.8, 1.0, "pinch.json"), "");     // none given
+  EXPECT_EQ(godhand::svc::replayRateMismatch(113.8, 113.8, 1.0, "pinch.json"), "");
+  EXPECT_EQ(godhand::svc::replayRateMismatch(114.9, 113.8, 1.0, "pinch.json"), "");   // within 1 %
+  EXPECT_EQ(godhand::svc::replayRateMismatch(56.9, 113.8, 0.5, "pinch.json"), "");    // live at half speed
+  const std::string off = godhand::svc::replayRateMismatch(30.0, 113.8, 1.0, "pinch.json");
+  EXPECT_NE(off.find("--frame-rate 30 Hz: pinch.json replays at 113.8 Hz"), std::string::npos) << off;
+  const std::string slow = godhand::svc::replayRateMismatch(113.8, 113.8, 0.5, "pinch.json");
+  EXPECT_NE(slow.find("replays at 56.9 Hz here (its 113.8 Hz times --speed 0.5)"), std::string::npos) << slow;
 }

@@ -151,7 +151,7 @@ async function loadScene(desc) {
       holder.add(new THREE.Mesh(new THREE.BoxGeometry(0.05, 0.05, 0.05), o.dynamic ? dynamicMat : staticMat));
       continue;
     }
-    fetch(`mesh/${desc.generation}/${o.index}${LIGHT ? '.light' : ''}.bin`).then((r) => (r.ok ? r.arrayBuffer() : null)).then((buf) => {
+    fetchRetrying(`mesh/${desc.generation}/${o.index}${LIGHT ? '.light' : ''}.bin`).then((r) => (r.ok ? r.arrayBuffer() : null)).then((buf) => {
       if (!buf || sceneObjects.get(o.index) !== holder) return;
       const dv = new DataView(buf);
       if (dv.getUint32(0, true) !== 0x314d4847) return;  // "GHM1"
@@ -165,6 +165,17 @@ async function loadScene(desc) {
       godhand.scene.triangles += nt;
       requestRender();
     });
+  }
+}
+
+// The viewer answers 503 (Retry-After) while too many responses are on their way, from this
+// address or all together (services/viewer/server.cc): try again, a few times, rather than
+// leave a mesh out.
+async function fetchRetrying(url, tries = 6) {
+  for (let i = 1; ; i++) {
+    const r = await fetch(url);
+    if (r.status !== 503 || i >= tries) return r;
+    await new Promise((resolve) => setTimeout(resolve, 250 * i));
   }
 }
 
@@ -591,7 +602,7 @@ window.addEventListener('pointermove', (e) => {
 let offline = null;
 async function startOffline() {
   document.getElementById('mode').textContent = 'offline';
-  const data = await (await fetch('offline.json')).json();
+  const data = await (await fetchRetrying('offline.json')).json();
   loadScene(data.scene);
   const tl = document.getElementById('timeline');
   tl.style.display = 'block';
@@ -646,7 +657,7 @@ async function startOffline() {
   offline.show(0);
 }
 
-fetch('mode.json').then((r) => r.json()).then((m) => {
+fetchRetrying('mode.json').then((r) => r.json()).then((m) => {
   godhand.mode = m.mode;
   const help = document.getElementById('synthetic-help');
   if (m.mode === 'live' && m.synthetic !== null && m.synthetic !== undefined) {
