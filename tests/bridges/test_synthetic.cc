@@ -322,7 +322,9 @@ TEST(Sources, GapsInTheTimestampsAreLeftOutOfTheRateAndSilencesReplayedWithoutHa
   EXPECT_EQ(silence.frames.size(), whole.frames.size() - 150 + silence.filled_frames);
   size_t empty = 0;
   for (size_t i = 0; i < silence.frames.size(); ++i) {
-    if (i > 0) EXPECT_GT(silence.frames[i].timestamp_us, silence.frames[i - 1].timestamp_us) << i;
+    if (i > 0) {
+      EXPECT_GT(silence.frames[i].timestamp_us, silence.frames[i - 1].timestamp_us) << i;
+    }
     if (silence.frames[i].hands.empty()) {
       ++empty;
       EXPECT_GT(silence.frames[i].timestamp_us, static_cast<std::int64_t>(t99)) << i;
