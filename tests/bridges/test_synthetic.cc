@@ -32,6 +32,30 @@ std::string readTextFile(const std::string& path) {
   ss << in.rdbuf();
   return ss.str();
 }
+/// The right hand of `rec` through the in-process pipeline on `scene` (16-body model, Bullet at
+/// 240 Hz): after each frame `each(i, pipe, hand, targets)`, hand the frame's tracked right hand
+/// (nullptr when none) and targets its retargeting. Returns the pipeline's counters.
+using FrameFn = std::function<void(size_t, Pipeline&, const bridges::TrackedHand*, const std::vector<Pose>&)>;
+PipelineCounters driveRightHand(const Scene& scene, const bridges::LoadedRecording& rec, const FrameFn& each = {}) {
+  const HandModel right = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  PipelineParams params;
+  params.step.dt = 1.0 / rec.mean_rate_hz;
+  Pipeline pipe(scene, {&right}, params, physicsParamsFor(rec.mean_rate_hz, 240.0));
+  const leap::Retargeter rt(right);
+  std::vector<Pose> tg;
+  std::vector<unsigned char> has;
+  for (size_t i = 0; i < rec.frames.size(); ++i) {
+    const bridges::TrackedHand* h = bridges::handOfSide(rec.frames[i], true);
+    HandInput in;
+    if (h) {
+      rt.targets(*h, &tg, &has);
+      in = {true, tg.data(), has.data()};
+    }
+    pipe.step({in});
+    if (each) each(i, pipe, h, tg);
+  }
+  return pipe.counters();
+}
 }  // namespace
 
 TEST(Synthetic, ParseErrorsNameTheLine) {
@@ -95,32 +119,17 @@ TEST(Synthetic, DeterministicAndKilohertz) {
 
 TEST(Synthetic, PressSlideLiftDropoutTeleportNanThroughThePipeline) {
   const Scene scene = loadScene(dataPath("table.pbtxt"));
-  const HandModel right = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
   const bridges::LoadedRecording rec = bridges::loadRecording(dataPath("press_slide_lift.txt"));
   std::printf("[info] %s\n", rec.rejections.c_str());
   EXPECT_NE(rec.rejections.find("NaN/Inf 5"), std::string::npos) << rec.rejections;
-  PipelineParams params;
-  params.step.dt = 1.0 / rec.mean_rate_hz;
-  Pipeline pipe(scene, {&right}, params, physicsParamsFor(rec.mean_rate_hz, 240.0));
-  const leap::Retargeter rt(right);
-  std::vector<Pose> tg;
-  std::vector<unsigned char> has;
   const double surface = 0.11;
   double pen = 0.0, min_palm_z_pressed = 1.0, held_move = 0.0;
   double x_after_slide = 0.0, free_err_after_lift = 1.0;
   size_t untracked = 0;
   Vec3 last_tracked_pose = Vec3::Zero();
-  for (size_t i = 0; i < rec.frames.size(); ++i) {
-    const bridges::TrackedHand* h = bridges::handOfSide(rec.frames[i], true);
-    HandInput in;
-    if (h) {
-      rt.targets(*h, &tg, &has);
-      in = {true, tg.data(), has.data()};
-    } else {
-      ++untracked;
-    }
-    pipe.step({in});
-    if (!pipe.started(0)) continue;
+  driveRightHand(scene, rec, [&](size_t i, Pipeline& pipe, const bridges::TrackedHand* h, const std::vector<Pose>& tg) {
+    if (!h) ++untracked;
+    if (!pipe.started(0)) return;
     pen = std::max(pen, pipe.penetration(0));
     const Vec3 palm = pipe.poses(0)[0].p;
     const double t = static_cast<double>(i) / rec.mean_rate_hz;
@@ -129,7 +138,7 @@ TEST(Synthetic, PressSlideLiftDropoutTeleportNanThroughThePipeline) {
     if (i == 209 && h) free_err_after_lift = (palm - tg[0].p).norm();                    // lifted, free space
     if (h) last_tracked_pose = palm;
     else held_move = std::max(held_move, (palm - last_tracked_pose).norm());
-  }
+  });
   std::printf("[figure] synthetic.press.penetration_max_m = %.3g\n", pen);
   std::printf("[figure] synthetic.press.palm_min_z_m = %.4f (surface %.3f)\n", min_palm_z_pressed, surface);
   std::printf("[figure] synthetic.slide.palm_x_m = %.4f (target 0.1)\n", x_after_slide);
@@ -283,24 +292,7 @@ std::string writeEdited(const std::string& name, const std::function<void(nlohma
   return path;
 }
 std::uint64_t reacquisitionsOf(const bridges::LoadedRecording& rec) {
-  const Scene scene = loadScene(std::string(GODHAND_TEST_DATA_DIR) + "/synthetic/table.pbtxt");
-  const HandModel right = loadHandModel(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
-  PipelineParams params;
-  params.step.dt = 1.0 / rec.mean_rate_hz;
-  Pipeline pipe(scene, {&right}, params, physicsParamsFor(rec.mean_rate_hz, 240.0));
-  const leap::Retargeter rt(right);
-  std::vector<Pose> tg;
-  std::vector<unsigned char> has;
-  for (const bridges::TrackerFrame& f : rec.frames) {
-    const bridges::TrackedHand* h = bridges::handOfSide(f, true);
-    HandInput in;
-    if (h) {
-      rt.targets(*h, &tg, &has);
-      in = {true, tg.data(), has.data()};
-    }
-    pipe.step({in});
-  }
-  return pipe.counters().reacquisitions;
+  return driveRightHand(loadScene(std::string(GODHAND_TEST_DATA_DIR) + "/synthetic/table.pbtxt"), rec).reacquisitions;
 }
 }  // namespace
 

@@ -13,6 +13,7 @@ cases: same-hash RECORDING | same-hash-after-loss RECORDING | same-hash-under-pa
 """
 import re
 import signal
+import contextlib
 import json
 import os
 import queue
@@ -203,6 +204,18 @@ def launch_bg(extra):
     return p, report
 
 
+@contextlib.contextmanager
+def killed_on_error(p):
+    """A launcher driven by the block is killed (and reaped) if the block raises: none is left
+    running behind a failed step."""
+    try:
+        yield
+    except Exception:
+        p.kill()
+        p.wait(10)
+        raise
+
+
 def next_line(p, timeout):
     """p's next output line, or None at its end or after timeout seconds."""
     try:
@@ -259,7 +272,7 @@ def case_freeze(service, recording, restart):
     extra = ["--recording", recording, "--speed", "0.5"] + (["--restart"] if restart else ["--check"])
     p, report = launch_bg(extra)
     lines = []
-    try:
+    with killed_on_error(p):
         ok = wait_line(p, r"launch: t +[1-9]\.\d s \|.*resolver \d+ Hz running", 120, lines)
         check(ok is not None, "the replay is running")
         pid = pid_of(service)
@@ -297,10 +310,6 @@ def case_freeze(service, recording, restart):
             if restart:
                 check(any(f"{service} restarted" in l for l in lines), f"{service} restarted by the watchdog")
         out = rest_of(p, 240)
-    except Exception:
-        p.kill()
-        p.wait(10)
-        raise
     print(out)
     lines += out.splitlines(True)
     j = json.load(open(report)) if os.path.exists(report) else {}
@@ -338,7 +347,7 @@ def case_launcher_paused(recording):
     restarted, the run ends cleanly."""
     p, report = launch_bg(["--recording", recording, "--speed", "0.5", "--restart"])
     lines = []
-    try:
+    with killed_on_error(p):
         ok = wait_line(p, r"launch: t +[1-9]\.\d s \|.*resolver \d+ Hz running", 120, lines)
         check(ok is not None, "the replay is running")
         os.kill(p.pid, signal.SIGSTOP)
@@ -347,10 +356,6 @@ def case_launcher_paused(recording):
         finally:
             os.kill(p.pid, signal.SIGCONT)
         out = rest_of(p, 240)
-    except Exception:
-        p.kill()
-        p.wait(10)
-        raise
     print(out)
     text = "".join(lines) + out
     j = json.load(open(report)) if os.path.exists(report) else {}
@@ -400,7 +405,7 @@ def case_hand_kill(service, recording):
     """kill -9 of a service by hand (not by the launcher) under --restart: restarted, and the
     segments the dead process left in /dev/shm removed by its own launcher, by name."""
     p, report = launch_bg(["--recording", recording, "--speed", "0.5", "--restart", "--quiet"])
-    try:
+    with killed_on_error(p):
         deadline = time.time() + 120
         pid = None
         while time.time() < deadline and pid is None:
@@ -411,10 +416,6 @@ def case_hand_kill(service, recording):
         if pid:
             os.kill(pid, signal.SIGKILL)
         out = rest_of(p, 240)
-    except Exception:
-        p.kill()
-        p.wait(10)
-        raise
     print(out)
     j = json.load(open(report)) if os.path.exists(report) else {}
     check(p.returncode == 0 and f"{service} restarted" in out, f"{service} restarted after a kill -9 by hand (exit {p.returncode})")
