@@ -21,6 +21,7 @@
 #include "solver/active_set.h"
 #include "solver/pgs.h"
 #include "solver/qp.h"
+#include "../test_sanitized.h"
 
 namespace godhand {
 namespace {
@@ -661,7 +662,8 @@ TEST(SolverActiveSet, IncrementalFactorWithExactCancellations) {
   QpProblem qp;
   QpSolution sol;
   double worst = 0.0;
-  constexpr int kTrials = 200000;  // the failure this guards against is rare (~1 in 40,000)
+  // The failure this guards against is rare (~1 in 40,000): every trial in the release run.
+  constexpr int kTrials = test_support::sanitizedTrials(200000, 10);
   for (int trial = 0; trial < kTrials; ++trial) {
     const int m = integerRows(gen, false, &qp);
     std::vector<unsigned char> flags(static_cast<size_t>(m));
@@ -687,7 +689,7 @@ TEST(SolverActiveSet, IncrementalFactorWithoutRegularization) {
   QpSolution sol;
   double worst = 0.0;
   int failed_pivots = 0;
-  constexpr int kTrials = 20000;
+  constexpr int kTrials = test_support::sanitizedTrials(20000, 5);
   for (int trial = 0; trial < kTrials; ++trial) {
     const int m = integerRows(gen, true, &qp);
     std::vector<unsigned char> flags(static_cast<size_t>(m));

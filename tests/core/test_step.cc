@@ -28,6 +28,7 @@
 #include "model/hand_model.h"
 #include "step/cluster_step.h"
 #include "../pipeline/probe_model.h"
+#include "../test_sanitized.h"
 
 namespace godhand {
 namespace {
@@ -355,7 +356,7 @@ TEST(HandJoints, GapStaysClosedUnderInconsistentTargets) {
   double gap = 0, lock = 0, limit = 0, err = 0;
   int not_converged = 0, limit_rows = 0;
   const auto t0 = std::chrono::steady_clock::now();
-  constexpr int kSteps = 10000;
+  constexpr int kSteps = test_support::sanitizedTrials(10000, 5);
   for (int i = 0; i < kSteps; ++i) {
     gen.targets(m, i, 0.005, 0.1, T);
     const StepReport& r = s.step({T.data(), nullptr, nullptr, 0});

@@ -20,17 +20,13 @@
 #include "common/files.h"
 #include "scene/mesh_io.h"
 #include "geometry/sweep.h"
+#include "../test_sanitized.h"
 
 namespace godhand::geo {
 namespace {
 
-// The sanitizer build (Debug -O1, ~40× slower here) checks memory and UB, not statistics: it runs
-// a third of the random motions.
-#if defined(__SANITIZE_ADDRESS__)
-constexpr int kMotionDivisor = 3;
-#else
-constexpr int kMotionDivisor = 1;
-#endif
+// The sanitizer build runs a third of the random motions (test_sanitized.h).
+constexpr int kMotionDivisor = test_support::kSanitized ? 3 : 1;
 
 // Draws are taken one per statement (x, then y, then z): C++ leaves the order of
 // function arguments and of a binary operator's operands unspecified, so
