@@ -515,6 +515,7 @@ int main(int argc, char** argv) {
     reportForeign(who);
     return true;
   };
+  std::vector<std::pair<std::string, pid_t>> beats;  // heartbeats since the last drain: a restart's first
   auto takeStatus = [&] {
     msg::ServiceStatus s;
     while (st_in->take(s)) {
@@ -522,6 +523,7 @@ int main(int argc, char** argv) {
       const std::string name = s.service().to_string();
       status[name] = s;
       watchdog.beat(name, Clock::now());
+      if (beats.size() < 256) beats.emplace_back(name, static_cast<pid_t>(s.pid()));
       std::uint64_t source_run = 0;
       const SourceCounts counts = svc::fromWire(s.source(), &source_run);
       source_tally.update(source_run, counts);  // run 0: not a tracker source
@@ -618,7 +620,7 @@ int main(int argc, char** argv) {
   std::uint64_t tracked_targets_seen = 0;  // HandTargets with a tracked hand (the "no hand tracked" verdict's check)
   std::uint64_t next_frame = 1;
   std::uint64_t last_scene_step = 0;
-  std::vector<unsigned char> hand_stale(C, 0);
+  RecoveryLog recovery(static_cast<int>(C));  // each restart: when every hand was fresh again
   Delivery delivery(C);
   int exit_code = 0;
   std::string failure;
@@ -631,7 +633,6 @@ int main(int argc, char** argv) {
   std::set<std::string> killed_by_us;  // SIGKILLed by a drill or the watchdog: restart it
   bool scene_down = false;             // the scene's poses are old (killed, silent, restarting)
   double unscored_from = -1;
-  bool any_restart = false;
   std::map<int, ObjectMotion> scene_last;  // newest state per dynamic object
   bool scene_restarted = false;     // the scene was restarted: its first state's jump is measured
 
@@ -810,6 +811,11 @@ int main(int argc, char** argv) {
   };
   auto drain = [&] {
     takeStatus();
+    for (const auto& [name, pid] : beats) {  // the restarted process's own (not a heartbeat of the dead one in flight)
+      const ChildStatus* c = sup.find(name);
+      if (c && c->pid == pid) recovery.heartbeat(name, replayS());
+    }
+    beats.clear();
     msg::HandTarget t;
     while (ht_in->take(t)) {
       delivery.published(t.stamp().run(), t.stamp().frame());
@@ -833,7 +839,7 @@ int main(int argc, char** argv) {
       if (!svc::fromWire(ss, static_cast<int>(scene.objects.size()), &snap, &why)) continue;
       rep.pushouts += snap.pushouts;
       last_scene_us = snap.step_us;
-      if (any_restart && rep.scene_back_s < 0 && snap.step < last_scene_step) rep.scene_back_s = replayS();
+      if (snap.step < last_scene_step) recovery.sceneRunBegan(replayS());
       last_scene_step = snap.step;
       if (scene_restarted) {  // how far the restarted scene moved the objects from where they were
         scene_restarted = false;
@@ -887,17 +893,8 @@ int main(int argc, char** argv) {
       } else {
         awaiting.push_back(Awaiting{h, lat, stale_rx, Clock::now()});
         scoreAwaiting(false);
-        const double now_s = replayS();
-        hand_stale[h.hand()] = stale_rx;
-        bool any_stale = false;
-        for (unsigned char st_h : hand_stale) any_stale = any_stale || st_h;
-        if (now_s < 0 || h.stamp().frame() == 0) continue;  // start-up is not a stale window
-        if (stale_rx) {
-          if (rep.stale_first_s < 0) rep.stale_first_s = now_s;
-          rep.stale_last_s = now_s;
-        } else if (rep.stale_last_s >= 0 && rep.resumed_s < 0 && any_restart && !any_stale) {
-          rep.resumed_s = now_s;  // resumed: after a restart, every hand's newest state is fresh again
-        }
+        if (h.stamp().frame() == 0) continue;  // start-up is not a stale window
+        recovery.state(static_cast<int>(h.hand()), stale_rx, replayS());
       }
     }
     // Lock-step: frames complete in order (every cluster's HandState(k) and SceneState(k), and
@@ -1031,7 +1028,7 @@ int main(int argc, char** argv) {
         break;
       }
       watchdog.reset(it->first, Clock::now());
-      any_restart = true;
+      recovery.restarted(it->first, replayS());
       if (it->first == "scene") scene_restarted = true;
       for (size_t i = 0; i < drills.size(); ++i)
         if (drill_fired[i] && drills[i].service == it->first && drill_reports[i].restarted_s < 0) drill_reports[i].restarted_s = replayS();
@@ -1054,6 +1051,7 @@ int main(int argc, char** argv) {
     }
     if (ingest_done) {
       run_over = true;
+      recovery.replayEnded(replayS());
       // Let the last states arrive (lock-step: until every frame is in, bounded).
       const Clock::time_point until = Clock::now() + std::chrono::seconds(lockstep ? 5 : 1);
       while (Clock::now() < until && (!lockstep || n_frames < 0 || next_frame <= static_cast<std::uint64_t>(n_frames))) {
@@ -1248,6 +1246,10 @@ int main(int argc, char** argv) {
   for (Watchdog::Pause& p : rep.launcher_pauses)
     p.start_s -= t_replay == Clock::time_point{} ? 0.0 : std::chrono::duration<double>(t_replay - t_start).count();
   rep.drills = drill_reports;
+  rep.restarts = recovery.restarts();
+  rep.stale_first_s = recovery.staleFirst();
+  rep.stale_last_s = recovery.staleLast();
+  rep.replay_end_s = recovery.replayEnd();
   for (size_t i = 0; i < drills.size(); ++i)
     if (!drill_fired[i]) rep.drills[i] = {drills[i].spec, drills[i].service, -1.0, -1.0, 0};
   rep.late_ms = rep.late_ms;

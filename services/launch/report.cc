@@ -2,6 +2,7 @@
 
 #include "pipeline/run_metrics_json.h"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace godhand {
@@ -25,6 +26,12 @@ nlohmann::json sourceJson(const SourceCounts& c, std::size_t runs) {
 
 namespace {
 }  // namespace
+
+const RecoveryLog::Restart* RunReport::restartOf(const std::string& service, double t_s) const {
+  for (const RecoveryLog::Restart& x : restarts)
+    if (x.service == service && x.restarted_s >= t_s) return &x;
+  return nullptr;
+}
 
 void printSummary(const RunReport& r) {
   std::printf("launch: %s run of %.1f s: %llu of %llu frames delivered fresh in every cluster%s, %ld hand states received "
@@ -89,10 +96,25 @@ void printSummary(const RunReport& r) {
   for (const DrillReport& d : r.drills)
     std::printf("  fault drill %s: killed at %s (frame %llu), restarted at %s (times from the replay start)\n", d.spec.c_str(),
                 secs(d.killed_s).c_str(), static_cast<unsigned long long>(d.killed_frame), secs(d.restarted_s).c_str());
-  if (!r.drills.empty() || !r.watchdog_restarts.empty())
-    std::printf("  stale states from %s to %s, every hand fresh again after a restart at %s; a restarted scene's first state at %s\n",
-                secs(r.stale_first_s).c_str(), secs(r.stale_last_s).c_str(), secs(r.resumed_s).c_str(), secs(r.scene_back_s).c_str());
-  if (r.scene_back_s >= 0 || r.scene_restart_jump_m > 0)
+  if (r.stale_first_s >= 0 && !r.restarts.empty())
+    std::printf("  stale states from %s to %s\n", secs(r.stale_first_s).c_str(), secs(r.stale_last_s).c_str());
+  for (const RecoveryLog::Restart& x : r.restarts) {
+    std::string back;
+    if (x.service == "scene")
+      back = x.scene_back_s >= 0 ? "; its first state at " + secs(x.scene_back_s) : "; no state of the new scene seen";
+    if (x.fresh_again_s >= 0)
+      std::printf("  %s restarted at %s: every hand fresh again at %s (%.2f s later, %llu stale states meanwhile)%s\n", x.service.c_str(),
+                  secs(x.restarted_s).c_str(), secs(x.fresh_again_s).c_str(), x.recoverySeconds(),
+                  static_cast<unsigned long long>(x.stale_states), back.c_str());
+    else
+      std::printf("  %s restarted at %s: NOT every hand fresh again by the end (%llu stale states since; %s%s)%s\n", x.service.c_str(),
+                  secs(x.restarted_s).c_str(), static_cast<unsigned long long>(x.stale_states),
+                  x.up_s >= 0 ? ("its first heartbeat at " + secs(x.up_s)).c_str() : "no heartbeat of it seen",
+                  r.replay_end_s >= x.restarted_s ? (", the replay ended at " + secs(r.replay_end_s)).c_str() : "", back.c_str());
+  }
+  if (r.scene_restart_jump_m > 0 || std::any_of(r.restarts.begin(), r.restarts.end(), [](const RecoveryLog::Restart& x) {
+        return x.service == "scene" && x.scene_back_s >= 0;
+      }))
     std::printf("  restarted scene: objects moved %.3f mm from the dead scene's last poses\n", r.scene_restart_jump_m * 1e3);
   std::printf("  late joiner: %zu of %llu HandStates and the SceneDescription %s%s\n", r.late_states,
               static_cast<unsigned long long>(r.hands), r.late_description ? "received" : "NOT received",
@@ -200,14 +222,25 @@ nlohmann::json reportJson(const RunReport& r) {
       drills.push_back({{"spec", d.spec}, {"service", d.service}, {"killed_s", orNull(d.killed_s)}, {"killed_frame", d.killed_frame},
                         {"restarted_s", orNull(d.restarted_s)}});
     j["fault_drills"] = drills;
-    // The first drill with the run's stale window, as before (times from the replay start).
+    // The first drill with the run's stale window and its own restart's recovery (times from the
+    // replay start; every restart is in "restarts").
     const DrillReport& d = r.drills.front();
+    const RecoveryLog::Restart* x = d.killed_s >= 0 ? r.restartOf(d.service, d.killed_s) : nullptr;
+    const double resumed = x ? x->fresh_again_s : -1, back = x ? x->scene_back_s : -1;
     j["fault_drill"] = {{"service", d.service}, {"killed_s", orNull(d.killed_s)}, {"restarted_s", orNull(d.restarted_s)},
                         {"stale_first_s", orNull(r.stale_first_s)}, {"stale_last_s", orNull(r.stale_last_s)},
-                        {"resumed_s", orNull(r.resumed_s)}, {"scene_back_s", orNull(r.scene_back_s)},
+                        {"resumed_s", orNull(resumed)}, {"scene_back_s", orNull(back)},
                         {"scene_restart_jump_m", r.scene_restart_jump_m},
-                        {"resume_after_restart_s", r.resumed_s >= 0 && d.restarted_s >= 0 ? orNull(r.resumed_s - d.restarted_s) : nullptr}};
+                        {"resume_after_restart_s", x && x->fresh_again_s >= 0 ? orNull(x->recoverySeconds()) : nullptr}};
   }
+  nlohmann::json restarts = nlohmann::json::array();
+  for (const RecoveryLog::Restart& x : r.restarts)
+    restarts.push_back({{"service", x.service}, {"restarted_s", orNull(x.restarted_s)}, {"fresh_again_s", orNull(x.fresh_again_s)},
+                        {"recovery_s", orNull(x.recoverySeconds())}, {"stale_states", x.stale_states}, {"up_s", orNull(x.up_s)},
+                        {"scene_back_s", orNull(x.scene_back_s)}});
+  j["restarts"] = restarts;
+  j["restarts_unrecovered"] = std::count_if(r.restarts.begin(), r.restarts.end(),
+                                            [](const RecoveryLog::Restart& x) { return x.fresh_again_s < 0; });
   if (r.have_hash && !r.failed()) {
     char hex[32];
     std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(r.result_hash));

@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/delivery.h"
+#include "common/recovery.h"
 #include "common/source_counts.h"
 #include "common/watchdog.h"
 #include "pipeline/run_metrics.h"
@@ -97,7 +98,11 @@ struct RunReport {
   std::vector<Watchdog::Pause> launcher_pauses;  ///< this launcher's own stalls (seconds since the replay start), the first 32
   std::uint64_t launcher_pause_count = 0;        ///< all of them
   std::vector<DrillReport> drills;
-  double stale_first_s = -1, stale_last_s = -1, resumed_s = -1, scene_back_s = -1;
+  double stale_first_s = -1, stale_last_s = -1;  ///< the run's first and last stale state
+  std::vector<RecoveryLog::Restart> restarts;      ///< every restart, with when every hand was fresh again
+  double replay_end_s = -1;                        ///< when the ingest was done (live)
+  /// The first restart of `service` at or after t_s (a drill's kill), or nullptr.
+  const RecoveryLog::Restart* restartOf(const std::string& service, double t_s) const;
   double scene_restart_jump_m = 0;   ///< largest displacement of an object at rest in both a dead scene's last state and its successor's first seen
 
   // End of the run.
