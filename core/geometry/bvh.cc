@@ -34,6 +34,42 @@ double surfaceArea(const Aabb& b) {
   return 2.0 * (e.x() * e.y() + e.y() * e.z() + e.z() * e.x());
 }
 
+/// What the turning bounds below need of one advancement step's motion (Δp, θ per unit time) and
+/// core, computed once per step: every term is the one the bounds computed per triangle and per
+/// node before, evaluated the same way, so the bounds are the same to the bit.
+struct StepMotion {
+  Vec3 dp = Vec3::Zero(), theta = Vec3::Zero();
+  Vec3 axes[3];           ///< the core's axes in M (capsule: its axis; box: three; sphere: none)
+  Vec3 theta_x_axes[3];   ///< θ × a_j
+  double halves[3] = {0.0, 0.0, 0.0};  ///< e_j
+  int n_axes = 0;
+  double esum = 0.0;         ///< Σ_j e_j
+  double half_theta = 0.0;   ///< ½ |θ|
+  double theta_norm = 0.0;   ///< |θ|
+  double two_dp_norm = 0.0;  ///< 2 |Δp|
+  bool turning = false;      ///< |θ|² > 0
+
+  StepMotion(const Vec3& dp_M, const Vec3& theta_M, const Vec3* core_axes, const double* core_halves, int n)
+      : dp(dp_M), theta(theta_M), n_axes(n) {
+    for (int j = 0; j < n; ++j) {
+      axes[j] = core_axes[j];
+      halves[j] = core_halves[j];
+      theta_x_axes[j] = theta.cross(axes[j]);
+      esum += halves[j];
+    }
+    theta_norm = theta.norm();
+    half_theta = 0.5 * theta_norm;
+    two_dp_norm = 2.0 * dp.norm();
+    turning = theta.squaredNorm() > 0.0;
+  }
+};
+
+/// What the first-order rate and the turning bounds share of one direction w: w·Δp and |w × θ|.
+struct Direction {
+  double w_dp = 0.0, w_x_theta = 0.0;
+  Direction(const Vec3& w, const StepMotion& m) : w_dp(w.dot(m.dp)), w_x_theta(w.cross(m.theta).norm()) {}
+};
+
 /// Second-order directional bound (sweep.h): the earliest τ ∈ (0, horizon] at which the separation
 /// along the fixed unit direction w between the moving core and a fixed convex set can have
 /// shrunk by `margin` (> 0); +inf if it cannot within the horizon. The core's support along w is
@@ -44,17 +80,20 @@ double surfaceArea(const Aabb& b) {
 /// which is convex in τ: the first crossing is found piece by piece between the kinks −c_j/ω_j.
 /// Unlike the first-order rate w·Δp + ρ_c |w × θ| (always > 0 under any tangential rotation),
 /// it sees an end of the core that turns away from the set as receding.
-double secondOrderTime(double margin, const Vec3& w, const Vec3& dp, const Vec3& theta, const Vec3* axes,
-                       const double* half, int n, double horizon) {
+/// *support gets the core's support along w, Σ_j e_j |c_j| (bodyAxisTime's).
+double secondOrderTime(double margin, const Vec3& w, const Direction& dir, const StepMotion& motion, double horizon,
+                       double* support) {
   const double inf = std::numeric_limits<double>::infinity();
+  const int n = motion.n_axes;
+  const double* half = motion.halves;
   double c[3], om[3], kinks[5];
-  double esum = 0.0;
+  double h = 0.0;
   int nk = 0;
   kinks[nk++] = 0.0;
   for (int j = 0; j < n; ++j) {
-    c[j] = w.dot(axes[j]);
-    om[j] = w.dot(theta.cross(axes[j]));
-    esum += half[j];
+    c[j] = w.dot(motion.axes[j]);
+    om[j] = w.dot(motion.theta_x_axes[j]);
+    h += half[j] * std::abs(c[j]);
     if (om[j] != 0.0) {
       const double k = -c[j] / om[j];
       if (k > 0.0 && k < horizon) kinks[nk++] = k;
@@ -63,8 +102,9 @@ double secondOrderTime(double margin, const Vec3& w, const Vec3& dp, const Vec3&
   kinks[nk++] = horizon;
   for (int i = 2; i + 1 < nk; ++i)  // insertion sort of the (at most three) interior kinks
     for (int k = i; k > 1 && kinks[k] < kinks[k - 1]; --k) std::swap(kinks[k], kinks[k - 1]);
-  const double A = 0.5 * theta.norm() * w.cross(theta).norm() * esum;
-  const double lin = w.dot(dp);
+  *support = h;
+  const double A = motion.half_theta * dir.w_x_theta * motion.esum;
+  const double lin = dir.w_dp;
   for (int piece = 0; piece + 1 < nk; ++piece) {
     const double lo = kinks[piece], hi = kinks[piece + 1];
     if (!(hi > lo)) continue;
@@ -105,16 +145,17 @@ double secondOrderTime(double margin, const Vec3& w, const Vec3& dp, const Vec3&
 ///   at t = 0 it is B_i = w·dp + θ·(r_i0 × w); |a(t) − w| ≤ t|θ| and |r_i(t) − r_i0| ≤ t|dp| bound
 ///   its change by t|θ|(2|dp| + |θ||r_i0|) = A_i t. So s_i falls by at most B_i t + A_i t²/2.
 /// `floor`: the least margin (as visitTriangle's).
-double bodyAxisTime(const Vec3* v, int n, const Vec3& p0, const Vec3& w, double support, double reach,
-                    const Vec3& dp, const Vec3& theta, double floor) {
-  const double th = theta.norm(), dpn = dp.norm();
+double bodyAxisTime(const Vec3* v, int n, const Vec3& p0, const Vec3& w, const Direction& dir, double support,
+                    double reach, const StepMotion& motion, double floor) {
+  const Vec3& theta = motion.theta;
+  const double th = motion.theta_norm;
   double t_min = std::numeric_limits<double>::infinity();
   for (int k = 0; k < n; ++k) {
     const Vec3& vi = v[k];
     const Vec3 r = vi - p0;
     const double m = std::max(w.dot(r) - support - reach, floor);
-    const double B = w.dot(dp) + theta.dot(r.cross(w));
-    const double A = th * (2.0 * dpn + th * r.norm());
+    const double B = dir.w_dp + theta.dot(r.cross(w));
+    const double A = th * (motion.two_dp_norm + th * r.norm());
     double t;
     if (A > 0.0) {
       const double q = std::sqrt(B * B + 2.0 * A * m);
@@ -608,13 +649,7 @@ struct MeshBvh::Impl {
       }
       n_axes = 3;
     }
-    // Time for a separation s (core to object, along unit w) to shrink to r + η.
-    auto timeBound = [&](double s, const Vec3& w) {
-      const double margin = s - r - eta;
-      if (margin <= 0.0) return 0.0;
-      const double rate = w.dot(dp_M) + rho_c * w.cross(theta_M).norm();
-      return rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
-    };
+    const StepMotion motion(dp_M, theta_M, axes, halves, n_axes);
     // Lower bound of the time before box b can come within η: the larger of the directional bound
     // along the first-order separating direction and the box-gap bound at the full speed μ_c.
     // `along` (optional) gets that direction, the margin along it and the turn's share of the rate
@@ -648,15 +683,15 @@ struct MeshBvh::Impl {
     // fixed direction (the body-axis one over the box's eight corners), so a turning body's
     // receding end prunes whole subtrees, not only their triangles one by one.
     auto refineNode = [&](int index, const Vec3& u, double margin, double t) {
-      if (n_axes > 0) t = std::max(t, secondOrderTime(margin, u, dp_M, theta_M, axes, halves, n_axes, horizon));
-      if (t < best && theta_M.squaredNorm() > 0.0) {
+      const Direction dir(u, motion);
+      double support = 0.0;
+      if (n_axes > 0) t = std::max(t, secondOrderTime(margin, u, dir, motion, horizon, &support));
+      if (t < best && motion.turning) {
         const Aabb& b = bvh.nodes_[static_cast<size_t>(index)].box;
         Vec3 corners[8];
         for (int c = 0; c < 8; ++c)
           corners[c] = Vec3((c & 1) ? b.hi.x() : b.lo.x(), (c & 2) ? b.hi.y() : b.lo.y(), (c & 4) ? b.hi.z() : b.lo.z());
-        double support = 0.0;
-        for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(u.dot(axes[j]));
-        t = std::max(t, bodyAxisTime(corners, 8, X_MB.p, u, support, r + eta, dp_M, theta_M, 0.0));
+        t = std::max(t, bodyAxisTime(corners, 8, X_MB.p, u, dir, support, r + eta, motion, 0.0));
       }
       return t;
     };
@@ -676,15 +711,14 @@ struct MeshBvh::Impl {
         // there says nothing and they are always visited.)
         const Vec3 w_M = core.R_MB * ((tri_B - core_B) / d_core);
         const double margin = std::max(d_core - r - eta, kMinShrink);
-        const double rate = w_M.dot(dp_M) + rho_c * w_M.cross(theta_M).norm();
+        const Direction dir(w_M, motion);
+        const double rate = dir.w_dp + rho_c * dir.w_x_theta;
         t_i = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
+        double support = 0.0;
         if (t_i < best && n_axes > 0)
-          t_i = std::max(t_i, secondOrderTime(margin, w_M, dp_M, theta_M, axes, halves, n_axes, horizon));
-        if (t_i < best && theta_M.squaredNorm() > 0.0) {
-          double support = 0.0;
-          for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(w_M.dot(axes[j]));
-          t_i = std::max(t_i, bodyAxisTime(v.data(), 3, X_MB.p, w_M, support, r + eta, dp_M, theta_M, kMinShrink));
-        }
+          t_i = std::max(t_i, secondOrderTime(margin, w_M, dir, motion, horizon, &support));
+        if (t_i < best && motion.turning)
+          t_i = std::max(t_i, bodyAxisTime(v.data(), 3, X_MB.p, w_M, dir, support, r + eta, motion, kMinShrink));
       }
       if (t_i < best) {
         best = t_i;
@@ -721,14 +755,17 @@ struct MeshBvh::Impl {
             Vec3 u;
             double sep;
             if (core.triangleBound(v, &u, &sep) > 0.0) {
-              double t_u = timeBound(sep, u);
               const double margin = sep - r - eta;
-              if (t_u < best && margin > 0.0 && n_axes > 0)
-                t_u = std::max(t_u, secondOrderTime(margin, u, dp_M, theta_M, axes, halves, n_axes, horizon));
-              if (t_u < best && margin > 0.0 && theta_M.squaredNorm() > 0.0) {
+              double t_u = 0.0;  // a separation within r + η: time 0
+              if (!(margin <= 0.0)) {
+                const Direction dir(u, motion);
+                const double rate = dir.w_dp + rho_c * dir.w_x_theta;
+                t_u = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
                 double support = 0.0;
-                for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(u.dot(axes[j]));
-                t_u = std::max(t_u, bodyAxisTime(v.data(), 3, X_MB.p, u, support, r + eta, dp_M, theta_M, 0.0));
+                if (t_u < best && margin > 0.0 && n_axes > 0)
+                  t_u = std::max(t_u, secondOrderTime(margin, u, dir, motion, horizon, &support));
+                if (t_u < best && margin > 0.0 && motion.turning)
+                  t_u = std::max(t_u, bodyAxisTime(v.data(), 3, X_MB.p, u, dir, support, r + eta, motion, 0.0));
               }
               if (t_u >= best) continue;
             }
