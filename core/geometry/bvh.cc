@@ -28,6 +28,9 @@ constexpr double kMinShrink = 1e-9;  ///< m: least margin of a triangle in advan
 /// remove (part of) the turn's term, and where it is small they cost more than they prune.
 constexpr double kTurnShare = 0.25;
 
+/// A triangle's centroid, as the bounds take it.
+Vec3 centroid(const std::array<Vec3, 3>& v) { return (v[0] + v[1] + v[2]) / 3.0; }
+
 double surfaceArea(const Aabb& b) {
   if (b.empty()) return 0.0;
   const Vec3 e = b.extent();
@@ -80,11 +83,13 @@ struct Direction {
 /// which is convex in τ: the first crossing is found piece by piece between the kinks −c_j/ω_j.
 /// Unlike the first-order rate w·Δp + ρ_c |w × θ| (always > 0 under any tangential rotation),
 /// it sees an end of the core that turns away from the set as receding.
-/// *support gets the core's support along w, Σ_j e_j |c_j| (bodyAxisTime's).
+/// *support gets the core's support along w, Σ_j e_j |c_j| (bodyAxisTime's). N: the core's axis
+/// count (motion.n_axes), a template parameter so that the loops over the axes are unrolled.
+template <int N>
 double secondOrderTime(double margin, const Vec3& w, const Direction& dir, const StepMotion& motion, double horizon,
                        double* support) {
   const double inf = std::numeric_limits<double>::infinity();
-  const int n = motion.n_axes;
+  constexpr int n = N;
   const double* half = motion.halves;
   double c[3], om[3], kinks[5];
   double h = 0.0;
@@ -250,18 +255,18 @@ struct CoreM {
   }
 
   /// Separation of the core and triangle v along the core distance's gradient u at the centroid
-  /// c: f(c) + min_k u·(v_k − c) (the minimum of a linear function over the triangle is at a
-  /// corner), a lower bound of their distance. Returns f(c); *sep gets the separation.
-  double triangleBound(const std::array<Vec3, 3>& v, Vec3* u, double* sep) const {
-    const Vec3 c = (v[0] + v[1] + v[2]) / 3.0;
+  /// c (centroid(v), stored with the hierarchy): f(c) + min_k u·(v_k − c) (the minimum of a linear
+  /// function over the triangle is at a corner), a lower bound of their distance. Returns f(c);
+  /// *sep gets the separation.
+  double triangleBound(const std::array<Vec3, 3>& v, const Vec3& c, Vec3* u, double* sep) const {
     const double f = pointDistance(c, u);
     *sep = f + std::min({u->dot(v[0] - c), u->dot(v[1] - c), u->dot(v[2] - c)});
     return f;
   }
-  double lowerBound(const std::array<Vec3, 3>& v) const {
+  double lowerBound(const std::array<Vec3, 3>& v, const Vec3& c) const {
     Vec3 u;
     double sep;
-    triangleBound(v, &u, &sep);
+    triangleBound(v, c, &u, &sep);
     return sep;
   }
 };
@@ -507,7 +512,7 @@ struct MeshBvh::Impl {
     // triangle at the least distance is visited whatever the order the best was found in: the
     // hint then cannot change the result.
     const double tie = kTieSlack * (1.0 + bvh.max_coordinate_ + X_MB.p.cwiseAbs().maxCoeff());
-    int best_index = -1;  // position in order_; the hint: −2 − triangle
+    int best_index = -1;  // position in order_
     int best_triangle = std::numeric_limits<int>::max();  // its mesh index: ties go to the lowest
     Vec3 best_core_B, best_tri_B;
     std::array<Vec3, 3> best_abc_B;
@@ -531,8 +536,14 @@ struct MeshBvh::Impl {
         best_abc_B = abc_B;
       }
     };
-    if (hint >= 0 && hint < bvh.mesh_.triangleCount())
-      measure({bvh.mesh_.vertex(hint, 0), bvh.mesh_.vertex(hint, 1), bvh.mesh_.vertex(hint, 2)}, hint, -2 - hint);
+    // The traversal skips the hint's position: measured again there it would give the same
+    // distance, which cannot replace the best (the best is at most that distance, and at a tie it
+    // is the hint itself or a lower index).
+    int hint_at = -1;
+    if (hint >= 0 && hint < bvh.mesh_.triangleCount()) {
+      hint_at = bvh.position_[static_cast<size_t>(hint)];
+      measure(bvh.tri_vertices_[static_cast<size_t>(hint_at)], hint, hint_at);
+    }
 
     int stack[kStackSize];
     double stack_lb[kStackSize];
@@ -545,9 +556,10 @@ struct MeshBvh::Impl {
       const Node& node = bvh.nodes_[static_cast<size_t>(stack[sp])];
       if (node.count > 0) {
         for (int i = node.first; i < node.first + node.count; ++i) {
+          if (i == hint_at) continue;
           if (core.gapBound(bvh.tri_boxes_[static_cast<size_t>(i)]) > best + tie) continue;
           const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
-          if (core.lowerBound(v) > best + tie) continue;
+          if (core.lowerBound(v, bvh.tri_centroids_[static_cast<size_t>(i)]) > best + tie) continue;
           measure(v, bvh.order_[static_cast<size_t>(i)], i);
         }
         continue;
@@ -583,7 +595,7 @@ struct MeshBvh::Impl {
       if (near_lb <= best + tie) { stack[sp] = near_node; stack_lb[sp++] = near_lb; }
     }
     if (best_index == -1) return false;
-    out->triangle = best_index >= 0 ? bvh.order_[static_cast<size_t>(best_index)] : -2 - best_index;
+    out->triangle = bvh.order_[static_cast<size_t>(best_index)];
     out->closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, best, best_core_B, best_tri_B, best_abc_B[0],
                                                best_abc_B[1], best_abc_B[2]);
     return true;
@@ -607,7 +619,7 @@ struct MeshBvh::Impl {
         for (int i = node.first; i < node.first + node.count; ++i) {
           if (core.gapBound(bvh.tri_boxes_[static_cast<size_t>(i)]) > limit) continue;
           const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
-          if (core.lowerBound(v) > limit) continue;
+          if (core.lowerBound(v, bvh.tri_centroids_[static_cast<size_t>(i)]) > limit) continue;
           const Vec3 a_B = R_BM * (v[0] - X_MB.p), b_B = R_BM * (v[1] - X_MB.p), c_B = R_BM * (v[2] - X_MB.p);
           Vec3 core_B, tri_B;
           const double d = detail::coreTriangle(shape, a_B, b_B, c_B, &core_B, &tri_B);
@@ -650,6 +662,7 @@ struct MeshBvh::Impl {
       n_axes = 3;
     }
     const StepMotion motion(dp_M, theta_M, axes, halves, n_axes);
+    constexpr int kAxes = kType == ShapeType::Box ? 3 : 1;  // where n_axes > 0
     // Lower bound of the time before box b can come within η: the larger of the directional bound
     // along the first-order separating direction and the box-gap bound at the full speed μ_c.
     // `along` (optional) gets that direction, the margin along it and the turn's share of the rate
@@ -674,7 +687,7 @@ struct MeshBvh::Impl {
       return std::max(t_gap, rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity());
     };
     double best = horizon;
-    int best_index = std::numeric_limits<int>::min();  // none yet
+    int best_index = -1;  // none yet
     Vec3 best_core_B, best_tri_B;
     std::array<Vec3, 3> best_abc_B;
     double best_d = 0.0;
@@ -685,7 +698,7 @@ struct MeshBvh::Impl {
     auto refineNode = [&](int index, const Vec3& u, double margin, double t) {
       const Direction dir(u, motion);
       double support = 0.0;
-      if (n_axes > 0) t = std::max(t, secondOrderTime(margin, u, dir, motion, horizon, &support));
+      if (n_axes > 0) t = std::max(t, secondOrderTime<kAxes>(margin, u, dir, motion, horizon, &support));
       if (t < best && motion.turning) {
         const Aabb& b = bvh.nodes_[static_cast<size_t>(index)].box;
         Vec3 corners[8];
@@ -716,7 +729,7 @@ struct MeshBvh::Impl {
         t_i = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
         double support = 0.0;
         if (t_i < best && n_axes > 0)
-          t_i = std::max(t_i, secondOrderTime(margin, w_M, dir, motion, horizon, &support));
+          t_i = std::max(t_i, secondOrderTime<kAxes>(margin, w_M, dir, motion, horizon, &support));
         if (t_i < best && motion.turning)
           t_i = std::max(t_i, bodyAxisTime(v.data(), 3, X_MB.p, w_M, dir, support, r + eta, motion, kMinShrink));
       }
@@ -729,8 +742,13 @@ struct MeshBvh::Impl {
         best_d = d_core;
       }
     };
+    // The traversal skips the hint's position: visited again there it would give the same time
+    // (its bounds refined at least as far, the best being at most the hint's time), which cannot
+    // replace the best.
+    int hint_at = -1;
     if (hint >= 0 && hint < bvh.mesh_.triangleCount()) {
-      visitTriangle(-1 - hint, {bvh.mesh_.vertex(hint, 0), bvh.mesh_.vertex(hint, 1), bvh.mesh_.vertex(hint, 2)});
+      hint_at = bvh.position_[static_cast<size_t>(hint)];
+      visitTriangle(hint_at, bvh.tri_vertices_[static_cast<size_t>(hint_at)]);
     }
     int stack[kStackSize];
     double stack_t[kStackSize];
@@ -743,6 +761,7 @@ struct MeshBvh::Impl {
       const Node& node = bvh.nodes_[static_cast<size_t>(stack[sp])];
       if (node.count > 0) {
         for (int i = node.first; i < node.first + node.count; ++i) {
+          if (i == hint_at) continue;
           if (boxTime(bvh.tri_boxes_[static_cast<size_t>(i)], best) >= best) continue;
           const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
           {
@@ -754,7 +773,7 @@ struct MeshBvh::Impl {
             // more than η clear along u (a smaller separation says nothing: the triangle is visited).
             Vec3 u;
             double sep;
-            if (core.triangleBound(v, &u, &sep) > 0.0) {
+            if (core.triangleBound(v, bvh.tri_centroids_[static_cast<size_t>(i)], &u, &sep) > 0.0) {
               const double margin = sep - r - eta;
               double t_u = 0.0;  // a separation within r + η: time 0
               if (!(margin <= 0.0)) {
@@ -763,7 +782,7 @@ struct MeshBvh::Impl {
                 t_u = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
                 double support = 0.0;
                 if (t_u < best && margin > 0.0 && n_axes > 0)
-                  t_u = std::max(t_u, secondOrderTime(margin, u, dir, motion, horizon, &support));
+                  t_u = std::max(t_u, secondOrderTime<kAxes>(margin, u, dir, motion, horizon, &support));
                 if (t_u < best && margin > 0.0 && motion.turning)
                   t_u = std::max(t_u, bodyAxisTime(v.data(), 3, X_MB.p, u, dir, support, r + eta, motion, 0.0));
               }
@@ -828,9 +847,8 @@ struct MeshBvh::Impl {
       if (far_t < best) { stack[sp] = far_node; stack_t[sp++] = far_t; }
       if (near_t < best) { stack[sp] = near_node; stack_t[sp++] = near_t; }
     }
-    if (best_index != std::numeric_limits<int>::min()) {
-      // best_index ≥ 0: position in bvh.order_; < 0: the hint, encoded −1 − triangle.
-      limiting->triangle = best_index >= 0 ? bvh.order_[static_cast<size_t>(best_index)] : -1 - best_index;
+    if (best_index >= 0) {  // its position in bvh.order_
+      limiting->triangle = bvh.order_[static_cast<size_t>(best_index)];
       limiting->closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, best_d, best_core_B, best_tri_B,
                                                       best_abc_B[0], best_abc_B[1], best_abc_B[2]);
     }
@@ -919,10 +937,14 @@ MeshBvh::MeshBvh(TriangleMesh mesh) : mesh_(std::move(mesh)) {
   dipoles_.shrink_to_fit();
   tri_boxes_.resize(static_cast<size_t>(n));
   tri_vertices_.resize(static_cast<size_t>(n));
+  tri_centroids_.resize(static_cast<size_t>(n));
+  position_.resize(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) {
     const int t = order_[static_cast<size_t>(i)];
+    position_[static_cast<size_t>(t)] = i;
     tri_boxes_[static_cast<size_t>(i)] = boxes[static_cast<size_t>(t)];
     tri_vertices_[static_cast<size_t>(i)] = {mesh_.vertex(t, 0), mesh_.vertex(t, 1), mesh_.vertex(t, 2)};
+    tri_centroids_[static_cast<size_t>(i)] = centroid(tri_vertices_[static_cast<size_t>(i)]);
   }
   bounds_ = nodes_.front().box;
   max_coordinate_ = bounds_.lo.cwiseAbs().cwiseMax(bounds_.hi.cwiseAbs()).maxCoeff();
