@@ -609,12 +609,13 @@ struct MeshBvh::Impl {
     if (limit < 0.0) return;
     const CoreM<kType> core(shape, X_MB);
     const Mat3 R_BM = core.R_MB.transpose();
+    // Depth first, left child first (the answer in order_'s order); a node is pushed only where
+    // its bound is within the limit, both children's bounds taken at once.
     int stack[kStackSize];
     int sp = 0;
-    stack[sp++] = 0;
+    if (!(core.lowerBound(bvh.nodes_[0].box, limit) > limit)) stack[sp++] = 0;
     while (sp > 0) {
       const Node& node = bvh.nodes_[static_cast<size_t>(stack[--sp])];
-      if (core.lowerBound(node.box, limit) > limit) continue;
       if (node.count > 0) {
         for (int i = node.first; i < node.first + node.count; ++i) {
           if (core.gapBound(bvh.tri_boxes_[static_cast<size_t>(i)]) > limit) continue;
@@ -630,10 +631,34 @@ struct MeshBvh::Impl {
             out->push_back(nt);
           }
         }
-      } else {
-        stack[sp++] = node.right;
-        stack[sp++] = node.first;
+        continue;
       }
+      const Aabb& left = bvh.nodes_[static_cast<size_t>(node.first)].box;
+      const Aabb& right = bvh.nodes_[static_cast<size_t>(node.right)].box;
+#if defined(__SSE2__)
+      // Each lane as core.lowerBound(box, limit).
+      double lb_left, lb_right;
+      {
+        const BoxPair pair_box(left, right);
+        const Lanes gap = gapBound2(core, pair_box);
+        lb_left = lane0(gap);
+        lb_right = lane1(gap);
+        if constexpr (kType != ShapeType::Sphere) {
+          if (!(lb_left > limit) || !(lb_right > limit)) {
+            Lanes3 u;
+            Lanes sep;
+            centreBound2<kType>(core, pair_box, &u, &sep);
+            const Lanes lb = lmax(gap, sep);
+            if (!(lb_left > limit)) lb_left = lane0(lb);
+            if (!(lb_right > limit)) lb_right = lane1(lb);
+          }
+        }
+      }
+#else
+      const double lb_left = core.lowerBound(left, limit), lb_right = core.lowerBound(right, limit);
+#endif
+      if (!(lb_right > limit)) stack[sp++] = node.right;
+      if (!(lb_left > limit)) stack[sp++] = node.first;
     }
   }
 
