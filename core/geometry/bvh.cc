@@ -697,6 +697,23 @@ struct MeshBvh::Impl {
       double margin = 0.0, turn = 0.0, rate = 0.0;
       bool valid = false;
     };
+    // boxTime's two parts for a triangle's box, taken apart: the gap time, and the directional
+    // time (0 where it does not apply); boxTime(b, best) >= best exactly where either is.
+    auto gapTime = [&](const Aabb& b) {
+      const double margin_gap = core.gapBound(b) - r - eta;
+      double t_gap = 0.0;
+      if (margin_gap > 0.0) t_gap = mu_c > 0.0 ? margin_gap / mu_c : std::numeric_limits<double>::infinity();
+      return t_gap;
+    };
+    auto directionalTime = [&](const Aabb& b) {
+      Vec3 u;
+      double sep;
+      if (core.centreBound(b, &u, &sep) <= 0.0) return 0.0;
+      const double margin = sep - r - eta;
+      if (margin <= 0.0) return 0.0;
+      const double rate = u.dot(dp_M) + rho_c * u.cross(theta_M).norm();
+      return rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
+    };
     auto boxTime = [&](const Aabb& b, double cutoff, Along* along = nullptr) {
       const double margin_gap = core.gapBound(b) - r - eta;
       double t_gap = 0.0;
@@ -787,32 +804,38 @@ struct MeshBvh::Impl {
       if (node.count > 0) {
         for (int i = node.first; i < node.first + node.count; ++i) {
           if (i == hint_at) continue;
-          if (boxTime(bvh.tri_boxes_[static_cast<size_t>(i)], best) >= best) continue;
+          // A triangle is visited only where none of its bounds reaches the best; they are taken
+          // cheapest and most often pruning first: the box gap, the first-order bound along the
+          // centroid's direction, then the box's directional one (boxTime's second part), then the
+          // centroid direction's second-order and body-axis ones.
+          const Aabb& tri_box = bvh.tri_boxes_[static_cast<size_t>(i)];
+          if (gapTime(tri_box) >= best) continue;
           const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
-          {
-            // f(c) + min_k u·(v_k − c), u the core distance's gradient at the centroid c, is the
-            // separation of core and triangle along the fixed direction u (u is the core's outward
-            // normal at the point nearest c), so every bound of visitTriangle holds along it too:
-            // the first-order one, then (where that does not settle it) the second-order and the
-            // body-axis ones, which see a turning body's far end recede. Only where the shape is
-            // more than η clear along u (a smaller separation says nothing: the triangle is visited).
-            Vec3 u;
-            double sep;
-            if (core.triangleBound(v, bvh.tri_centroids_[static_cast<size_t>(i)], &u, &sep) > 0.0) {
-              const double margin = sep - r - eta;
-              double t_u = 0.0;  // a separation within r + η: time 0
-              if (!(margin <= 0.0)) {
-                const Direction dir(u, motion);
-                const double rate = dir.w_dp + rho_c * dir.w_x_theta;
-                t_u = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
-                double support = 0.0;
-                if (t_u < best && margin > 0.0 && n_axes > 0)
-                  t_u = std::max(t_u, secondOrderTime<kAxes>(margin, u, dir, motion, horizon, &support));
-                if (t_u < best && margin > 0.0 && motion.turning)
-                  t_u = std::max(t_u, bodyAxisTime(v.data(), 3, X_MB.p, u, dir, support, r + eta, motion, 0.0));
-              }
-              if (t_u >= best) continue;
-            }
+          // f(c) + min_k u·(v_k − c), u the core distance's gradient at the centroid c, is the
+          // separation of core and triangle along the fixed direction u (u is the core's outward
+          // normal at the point nearest c), so every bound of visitTriangle holds along it too:
+          // the first-order one, then (where that does not settle it) the second-order and the
+          // body-axis ones, which see a turning body's far end recede. Only where the shape is
+          // more than η clear along u (a smaller separation says nothing: the triangle is visited).
+          Vec3 u;
+          double sep;
+          const bool along_u = core.triangleBound(v, bvh.tri_centroids_[static_cast<size_t>(i)], &u, &sep) > 0.0;
+          const double margin = sep - r - eta;
+          double t_u = 0.0;  // a separation within r + η: time 0
+          if (along_u && !(margin <= 0.0)) {
+            const double rate = u.dot(dp_M) + rho_c * u.cross(theta_M).norm();
+            t_u = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
+          }
+          if (along_u && t_u >= best) continue;
+          if (directionalTime(tri_box) >= best) continue;
+          if (along_u && !(margin <= 0.0)) {
+            const Direction dir(u, motion);
+            double support = 0.0;
+            if (t_u < best && margin > 0.0 && n_axes > 0)
+              t_u = std::max(t_u, secondOrderTime<kAxes>(margin, u, dir, motion, horizon, &support));
+            if (t_u < best && margin > 0.0 && motion.turning)
+              t_u = std::max(t_u, bodyAxisTime(v.data(), 3, X_MB.p, u, dir, support, r + eta, motion, 0.0));
+            if (t_u >= best) continue;
           }
           visitTriangle(i, v);
         }
