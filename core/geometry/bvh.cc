@@ -28,11 +28,50 @@ constexpr double kMinShrink = 1e-9;  ///< m: least margin of a triangle in advan
 /// remove (part of) the turn's term, and where it is small they cost more than they prune.
 constexpr double kTurnShare = 0.25;
 
+/// A triangle's centroid, as the bounds take it.
+Vec3 centroid(const std::array<Vec3, 3>& v) { return (v[0] + v[1] + v[2]) / 3.0; }
+
 double surfaceArea(const Aabb& b) {
   if (b.empty()) return 0.0;
   const Vec3 e = b.extent();
   return 2.0 * (e.x() * e.y() + e.y() * e.z() + e.z() * e.x());
 }
+
+/// What the turning bounds below need of one advancement step's motion (Δp, θ per unit time) and
+/// core, computed once per step: every term is the one the bounds computed per triangle and per
+/// node before, evaluated the same way, so the bounds are the same to the bit.
+struct StepMotion {
+  Vec3 dp = Vec3::Zero(), theta = Vec3::Zero();
+  Vec3 axes[3];           ///< the core's axes in M (capsule: its axis; box: three; sphere: none)
+  Vec3 theta_x_axes[3];   ///< θ × a_j
+  double halves[3] = {0.0, 0.0, 0.0};  ///< e_j
+  int n_axes = 0;
+  double esum = 0.0;         ///< Σ_j e_j
+  double half_theta = 0.0;   ///< ½ |θ|
+  double theta_norm = 0.0;   ///< |θ|
+  double two_dp_norm = 0.0;  ///< 2 |Δp|
+  bool turning = false;      ///< |θ|² > 0
+
+  StepMotion(const Vec3& dp_M, const Vec3& theta_M, const Vec3* core_axes, const double* core_halves, int n)
+      : dp(dp_M), theta(theta_M), n_axes(n) {
+    for (int j = 0; j < n; ++j) {
+      axes[j] = core_axes[j];
+      halves[j] = core_halves[j];
+      theta_x_axes[j] = theta.cross(axes[j]);
+      esum += halves[j];
+    }
+    theta_norm = theta.norm();
+    half_theta = 0.5 * theta_norm;
+    two_dp_norm = 2.0 * dp.norm();
+    turning = theta.squaredNorm() > 0.0;
+  }
+};
+
+/// What the first-order rate and the turning bounds share of one direction w: w·Δp and |w × θ|.
+struct Direction {
+  double w_dp = 0.0, w_x_theta = 0.0;
+  Direction(const Vec3& w, const StepMotion& m) : w_dp(w.dot(m.dp)), w_x_theta(w.cross(m.theta).norm()) {}
+};
 
 /// Second-order directional bound (sweep.h): the earliest τ ∈ (0, horizon] at which the separation
 /// along the fixed unit direction w between the moving core and a fixed convex set can have
@@ -44,17 +83,22 @@ double surfaceArea(const Aabb& b) {
 /// which is convex in τ: the first crossing is found piece by piece between the kinks −c_j/ω_j.
 /// Unlike the first-order rate w·Δp + ρ_c |w × θ| (always > 0 under any tangential rotation),
 /// it sees an end of the core that turns away from the set as receding.
-double secondOrderTime(double margin, const Vec3& w, const Vec3& dp, const Vec3& theta, const Vec3* axes,
-                       const double* half, int n, double horizon) {
+/// *support gets the core's support along w, Σ_j e_j |c_j| (bodyAxisTime's). N: the core's axis
+/// count (motion.n_axes), a template parameter so that the loops over the axes are unrolled.
+template <int N>
+double secondOrderTime(double margin, const Vec3& w, const Direction& dir, const StepMotion& motion, double horizon,
+                       double* support) {
   const double inf = std::numeric_limits<double>::infinity();
+  constexpr int n = N;
+  const double* half = motion.halves;
   double c[3], om[3], kinks[5];
-  double esum = 0.0;
+  double h = 0.0;
   int nk = 0;
   kinks[nk++] = 0.0;
   for (int j = 0; j < n; ++j) {
-    c[j] = w.dot(axes[j]);
-    om[j] = w.dot(theta.cross(axes[j]));
-    esum += half[j];
+    c[j] = w.dot(motion.axes[j]);
+    om[j] = w.dot(motion.theta_x_axes[j]);
+    h += half[j] * std::abs(c[j]);
     if (om[j] != 0.0) {
       const double k = -c[j] / om[j];
       if (k > 0.0 && k < horizon) kinks[nk++] = k;
@@ -63,8 +107,9 @@ double secondOrderTime(double margin, const Vec3& w, const Vec3& dp, const Vec3&
   kinks[nk++] = horizon;
   for (int i = 2; i + 1 < nk; ++i)  // insertion sort of the (at most three) interior kinks
     for (int k = i; k > 1 && kinks[k] < kinks[k - 1]; --k) std::swap(kinks[k], kinks[k - 1]);
-  const double A = 0.5 * theta.norm() * w.cross(theta).norm() * esum;
-  const double lin = w.dot(dp);
+  *support = h;
+  const double A = motion.half_theta * dir.w_x_theta * motion.esum;
+  const double lin = dir.w_dp;
   for (int piece = 0; piece + 1 < nk; ++piece) {
     const double lo = kinks[piece], hi = kinks[piece + 1];
     if (!(hi > lo)) continue;
@@ -105,16 +150,17 @@ double secondOrderTime(double margin, const Vec3& w, const Vec3& dp, const Vec3&
 ///   at t = 0 it is B_i = w·dp + θ·(r_i0 × w); |a(t) − w| ≤ t|θ| and |r_i(t) − r_i0| ≤ t|dp| bound
 ///   its change by t|θ|(2|dp| + |θ||r_i0|) = A_i t. So s_i falls by at most B_i t + A_i t²/2.
 /// `floor`: the least margin (as visitTriangle's).
-double bodyAxisTime(const Vec3* v, int n, const Vec3& p0, const Vec3& w, double support, double reach,
-                    const Vec3& dp, const Vec3& theta, double floor) {
-  const double th = theta.norm(), dpn = dp.norm();
+double bodyAxisTime(const Vec3* v, int n, const Vec3& p0, const Vec3& w, const Direction& dir, double support,
+                    double reach, const StepMotion& motion, double floor) {
+  const Vec3& theta = motion.theta;
+  const double th = motion.theta_norm;
   double t_min = std::numeric_limits<double>::infinity();
   for (int k = 0; k < n; ++k) {
     const Vec3& vi = v[k];
     const Vec3 r = vi - p0;
     const double m = std::max(w.dot(r) - support - reach, floor);
-    const double B = w.dot(dp) + theta.dot(r.cross(w));
-    const double A = th * (2.0 * dpn + th * r.norm());
+    const double B = dir.w_dp + theta.dot(r.cross(w));
+    const double A = th * (motion.two_dp_norm + th * r.norm());
     double t;
     if (A > 0.0) {
       const double q = std::sqrt(B * B + 2.0 * A * m);
@@ -209,18 +255,18 @@ struct CoreM {
   }
 
   /// Separation of the core and triangle v along the core distance's gradient u at the centroid
-  /// c: f(c) + min_k u·(v_k − c) (the minimum of a linear function over the triangle is at a
-  /// corner), a lower bound of their distance. Returns f(c); *sep gets the separation.
-  double triangleBound(const std::array<Vec3, 3>& v, Vec3* u, double* sep) const {
-    const Vec3 c = (v[0] + v[1] + v[2]) / 3.0;
+  /// c (centroid(v), stored with the hierarchy): f(c) + min_k u·(v_k − c) (the minimum of a linear
+  /// function over the triangle is at a corner), a lower bound of their distance. Returns f(c);
+  /// *sep gets the separation.
+  double triangleBound(const std::array<Vec3, 3>& v, const Vec3& c, Vec3* u, double* sep) const {
     const double f = pointDistance(c, u);
     *sep = f + std::min({u->dot(v[0] - c), u->dot(v[1] - c), u->dot(v[2] - c)});
     return f;
   }
-  double lowerBound(const std::array<Vec3, 3>& v) const {
+  double lowerBound(const std::array<Vec3, 3>& v, const Vec3& c) const {
     Vec3 u;
     double sep;
-    triangleBound(v, &u, &sep);
+    triangleBound(v, c, &u, &sep);
     return sep;
   }
 };
@@ -466,7 +512,7 @@ struct MeshBvh::Impl {
     // triangle at the least distance is visited whatever the order the best was found in: the
     // hint then cannot change the result.
     const double tie = kTieSlack * (1.0 + bvh.max_coordinate_ + X_MB.p.cwiseAbs().maxCoeff());
-    int best_index = -1;  // position in order_; the hint: −2 − triangle
+    int best_index = -1;  // position in order_
     int best_triangle = std::numeric_limits<int>::max();  // its mesh index: ties go to the lowest
     Vec3 best_core_B, best_tri_B;
     std::array<Vec3, 3> best_abc_B;
@@ -490,8 +536,14 @@ struct MeshBvh::Impl {
         best_abc_B = abc_B;
       }
     };
-    if (hint >= 0 && hint < bvh.mesh_.triangleCount())
-      measure({bvh.mesh_.vertex(hint, 0), bvh.mesh_.vertex(hint, 1), bvh.mesh_.vertex(hint, 2)}, hint, -2 - hint);
+    // The traversal skips the hint's position: measured again there it would give the same
+    // distance, which cannot replace the best (the best is at most that distance, and at a tie it
+    // is the hint itself or a lower index).
+    int hint_at = -1;
+    if (hint >= 0 && hint < bvh.mesh_.triangleCount()) {
+      hint_at = bvh.position_[static_cast<size_t>(hint)];
+      measure(bvh.tri_vertices_[static_cast<size_t>(hint_at)], hint, hint_at);
+    }
 
     int stack[kStackSize];
     double stack_lb[kStackSize];
@@ -504,9 +556,10 @@ struct MeshBvh::Impl {
       const Node& node = bvh.nodes_[static_cast<size_t>(stack[sp])];
       if (node.count > 0) {
         for (int i = node.first; i < node.first + node.count; ++i) {
+          if (i == hint_at) continue;
           if (core.gapBound(bvh.tri_boxes_[static_cast<size_t>(i)]) > best + tie) continue;
           const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
-          if (core.lowerBound(v) > best + tie) continue;
+          if (core.lowerBound(v, bvh.tri_centroids_[static_cast<size_t>(i)]) > best + tie) continue;
           measure(v, bvh.order_[static_cast<size_t>(i)], i);
         }
         continue;
@@ -542,7 +595,7 @@ struct MeshBvh::Impl {
       if (near_lb <= best + tie) { stack[sp] = near_node; stack_lb[sp++] = near_lb; }
     }
     if (best_index == -1) return false;
-    out->triangle = best_index >= 0 ? bvh.order_[static_cast<size_t>(best_index)] : -2 - best_index;
+    out->triangle = bvh.order_[static_cast<size_t>(best_index)];
     out->closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, best, best_core_B, best_tri_B, best_abc_B[0],
                                                best_abc_B[1], best_abc_B[2]);
     return true;
@@ -556,17 +609,18 @@ struct MeshBvh::Impl {
     if (limit < 0.0) return;
     const CoreM<kType> core(shape, X_MB);
     const Mat3 R_BM = core.R_MB.transpose();
+    // Depth first, left child first (the answer in order_'s order); a node is pushed only where
+    // its bound is within the limit, both children's bounds taken at once.
     int stack[kStackSize];
     int sp = 0;
-    stack[sp++] = 0;
+    if (!(core.lowerBound(bvh.nodes_[0].box, limit) > limit)) stack[sp++] = 0;
     while (sp > 0) {
       const Node& node = bvh.nodes_[static_cast<size_t>(stack[--sp])];
-      if (core.lowerBound(node.box, limit) > limit) continue;
       if (node.count > 0) {
         for (int i = node.first; i < node.first + node.count; ++i) {
           if (core.gapBound(bvh.tri_boxes_[static_cast<size_t>(i)]) > limit) continue;
           const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
-          if (core.lowerBound(v) > limit) continue;
+          if (core.lowerBound(v, bvh.tri_centroids_[static_cast<size_t>(i)]) > limit) continue;
           const Vec3 a_B = R_BM * (v[0] - X_MB.p), b_B = R_BM * (v[1] - X_MB.p), c_B = R_BM * (v[2] - X_MB.p);
           Vec3 core_B, tri_B;
           const double d = detail::coreTriangle(shape, a_B, b_B, c_B, &core_B, &tri_B);
@@ -577,10 +631,34 @@ struct MeshBvh::Impl {
             out->push_back(nt);
           }
         }
-      } else {
-        stack[sp++] = node.right;
-        stack[sp++] = node.first;
+        continue;
       }
+      const Aabb& left = bvh.nodes_[static_cast<size_t>(node.first)].box;
+      const Aabb& right = bvh.nodes_[static_cast<size_t>(node.right)].box;
+#if defined(__SSE2__)
+      // Each lane as core.lowerBound(box, limit).
+      double lb_left, lb_right;
+      {
+        const BoxPair pair_box(left, right);
+        const Lanes gap = gapBound2(core, pair_box);
+        lb_left = lane0(gap);
+        lb_right = lane1(gap);
+        if constexpr (kType != ShapeType::Sphere) {
+          if (!(lb_left > limit) || !(lb_right > limit)) {
+            Lanes3 u;
+            Lanes sep;
+            centreBound2<kType>(core, pair_box, &u, &sep);
+            const Lanes lb = lmax(gap, sep);
+            if (!(lb_left > limit)) lb_left = lane0(lb);
+            if (!(lb_right > limit)) lb_right = lane1(lb);
+          }
+        }
+      }
+#else
+      const double lb_left = core.lowerBound(left, limit), lb_right = core.lowerBound(right, limit);
+#endif
+      if (!(lb_right > limit)) stack[sp++] = node.right;
+      if (!(lb_left > limit)) stack[sp++] = node.first;
     }
   }
 
@@ -608,13 +686,8 @@ struct MeshBvh::Impl {
       }
       n_axes = 3;
     }
-    // Time for a separation s (core to object, along unit w) to shrink to r + η.
-    auto timeBound = [&](double s, const Vec3& w) {
-      const double margin = s - r - eta;
-      if (margin <= 0.0) return 0.0;
-      const double rate = w.dot(dp_M) + rho_c * w.cross(theta_M).norm();
-      return rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
-    };
+    const StepMotion motion(dp_M, theta_M, axes, halves, n_axes);
+    constexpr int kAxes = kType == ShapeType::Box ? 3 : 1;  // where n_axes > 0
     // Lower bound of the time before box b can come within η: the larger of the directional bound
     // along the first-order separating direction and the box-gap bound at the full speed μ_c.
     // `along` (optional) gets that direction, the margin along it and the turn's share of the rate
@@ -623,6 +696,23 @@ struct MeshBvh::Impl {
       Vec3 u = Vec3::Zero();
       double margin = 0.0, turn = 0.0, rate = 0.0;
       bool valid = false;
+    };
+    // boxTime's two parts for a triangle's box, taken apart: the gap time, and the directional
+    // time (0 where it does not apply); boxTime(b, best) >= best exactly where either is.
+    auto gapTime = [&](const Aabb& b) {
+      const double margin_gap = core.gapBound(b) - r - eta;
+      double t_gap = 0.0;
+      if (margin_gap > 0.0) t_gap = mu_c > 0.0 ? margin_gap / mu_c : std::numeric_limits<double>::infinity();
+      return t_gap;
+    };
+    auto directionalTime = [&](const Aabb& b) {
+      Vec3 u;
+      double sep;
+      if (core.centreBound(b, &u, &sep) <= 0.0) return 0.0;
+      const double margin = sep - r - eta;
+      if (margin <= 0.0) return 0.0;
+      const double rate = u.dot(dp_M) + rho_c * u.cross(theta_M).norm();
+      return rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
     };
     auto boxTime = [&](const Aabb& b, double cutoff, Along* along = nullptr) {
       const double margin_gap = core.gapBound(b) - r - eta;
@@ -639,7 +729,7 @@ struct MeshBvh::Impl {
       return std::max(t_gap, rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity());
     };
     double best = horizon;
-    int best_index = std::numeric_limits<int>::min();  // none yet
+    int best_index = -1;  // none yet
     Vec3 best_core_B, best_tri_B;
     std::array<Vec3, 3> best_abc_B;
     double best_d = 0.0;
@@ -648,15 +738,15 @@ struct MeshBvh::Impl {
     // fixed direction (the body-axis one over the box's eight corners), so a turning body's
     // receding end prunes whole subtrees, not only their triangles one by one.
     auto refineNode = [&](int index, const Vec3& u, double margin, double t) {
-      if (n_axes > 0) t = std::max(t, secondOrderTime(margin, u, dp_M, theta_M, axes, halves, n_axes, horizon));
-      if (t < best && theta_M.squaredNorm() > 0.0) {
+      const Direction dir(u, motion);
+      double support = 0.0;
+      if (n_axes > 0) t = std::max(t, secondOrderTime<kAxes>(margin, u, dir, motion, horizon, &support));
+      if (t < best && motion.turning) {
         const Aabb& b = bvh.nodes_[static_cast<size_t>(index)].box;
         Vec3 corners[8];
         for (int c = 0; c < 8; ++c)
           corners[c] = Vec3((c & 1) ? b.hi.x() : b.lo.x(), (c & 2) ? b.hi.y() : b.lo.y(), (c & 4) ? b.hi.z() : b.lo.z());
-        double support = 0.0;
-        for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(u.dot(axes[j]));
-        t = std::max(t, bodyAxisTime(corners, 8, X_MB.p, u, support, r + eta, dp_M, theta_M, 0.0));
+        t = std::max(t, bodyAxisTime(corners, 8, X_MB.p, u, dir, support, r + eta, motion, 0.0));
       }
       return t;
     };
@@ -676,15 +766,14 @@ struct MeshBvh::Impl {
         // there says nothing and they are always visited.)
         const Vec3 w_M = core.R_MB * ((tri_B - core_B) / d_core);
         const double margin = std::max(d_core - r - eta, kMinShrink);
-        const double rate = w_M.dot(dp_M) + rho_c * w_M.cross(theta_M).norm();
+        const Direction dir(w_M, motion);
+        const double rate = dir.w_dp + rho_c * dir.w_x_theta;
         t_i = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
+        double support = 0.0;
         if (t_i < best && n_axes > 0)
-          t_i = std::max(t_i, secondOrderTime(margin, w_M, dp_M, theta_M, axes, halves, n_axes, horizon));
-        if (t_i < best && theta_M.squaredNorm() > 0.0) {
-          double support = 0.0;
-          for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(w_M.dot(axes[j]));
-          t_i = std::max(t_i, bodyAxisTime(v.data(), 3, X_MB.p, w_M, support, r + eta, dp_M, theta_M, kMinShrink));
-        }
+          t_i = std::max(t_i, secondOrderTime<kAxes>(margin, w_M, dir, motion, horizon, &support));
+        if (t_i < best && motion.turning)
+          t_i = std::max(t_i, bodyAxisTime(v.data(), 3, X_MB.p, w_M, dir, support, r + eta, motion, kMinShrink));
       }
       if (t_i < best) {
         best = t_i;
@@ -695,8 +784,13 @@ struct MeshBvh::Impl {
         best_d = d_core;
       }
     };
+    // The traversal skips the hint's position: visited again there it would give the same time
+    // (its bounds refined at least as far, the best being at most the hint's time), which cannot
+    // replace the best.
+    int hint_at = -1;
     if (hint >= 0 && hint < bvh.mesh_.triangleCount()) {
-      visitTriangle(-1 - hint, {bvh.mesh_.vertex(hint, 0), bvh.mesh_.vertex(hint, 1), bvh.mesh_.vertex(hint, 2)});
+      hint_at = bvh.position_[static_cast<size_t>(hint)];
+      visitTriangle(hint_at, bvh.tri_vertices_[static_cast<size_t>(hint_at)]);
     }
     int stack[kStackSize];
     double stack_t[kStackSize];
@@ -709,29 +803,39 @@ struct MeshBvh::Impl {
       const Node& node = bvh.nodes_[static_cast<size_t>(stack[sp])];
       if (node.count > 0) {
         for (int i = node.first; i < node.first + node.count; ++i) {
-          if (boxTime(bvh.tri_boxes_[static_cast<size_t>(i)], best) >= best) continue;
+          if (i == hint_at) continue;
+          // A triangle is visited only where none of its bounds reaches the best; they are taken
+          // cheapest and most often pruning first: the box gap, the first-order bound along the
+          // centroid's direction, then the box's directional one (boxTime's second part), then the
+          // centroid direction's second-order and body-axis ones.
+          const Aabb& tri_box = bvh.tri_boxes_[static_cast<size_t>(i)];
+          if (gapTime(tri_box) >= best) continue;
           const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
-          {
-            // f(c) + min_k u·(v_k − c), u the core distance's gradient at the centroid c, is the
-            // separation of core and triangle along the fixed direction u (u is the core's outward
-            // normal at the point nearest c), so every bound of visitTriangle holds along it too:
-            // the first-order one, then (where that does not settle it) the second-order and the
-            // body-axis ones, which see a turning body's far end recede. Only where the shape is
-            // more than η clear along u (a smaller separation says nothing: the triangle is visited).
-            Vec3 u;
-            double sep;
-            if (core.triangleBound(v, &u, &sep) > 0.0) {
-              double t_u = timeBound(sep, u);
-              const double margin = sep - r - eta;
-              if (t_u < best && margin > 0.0 && n_axes > 0)
-                t_u = std::max(t_u, secondOrderTime(margin, u, dp_M, theta_M, axes, halves, n_axes, horizon));
-              if (t_u < best && margin > 0.0 && theta_M.squaredNorm() > 0.0) {
-                double support = 0.0;
-                for (int j = 0; j < n_axes; ++j) support += halves[j] * std::abs(u.dot(axes[j]));
-                t_u = std::max(t_u, bodyAxisTime(v.data(), 3, X_MB.p, u, support, r + eta, dp_M, theta_M, 0.0));
-              }
-              if (t_u >= best) continue;
-            }
+          // f(c) + min_k u·(v_k − c), u the core distance's gradient at the centroid c, is the
+          // separation of core and triangle along the fixed direction u (u is the core's outward
+          // normal at the point nearest c), so every bound of visitTriangle holds along it too:
+          // the first-order one, then (where that does not settle it) the second-order and the
+          // body-axis ones, which see a turning body's far end recede. Only where the shape is
+          // more than η clear along u (a smaller separation says nothing: the triangle is visited).
+          Vec3 u;
+          double sep;
+          const bool along_u = core.triangleBound(v, bvh.tri_centroids_[static_cast<size_t>(i)], &u, &sep) > 0.0;
+          const double margin = sep - r - eta;
+          double t_u = 0.0;  // a separation within r + η: time 0
+          if (along_u && !(margin <= 0.0)) {
+            const double rate = u.dot(dp_M) + rho_c * u.cross(theta_M).norm();
+            t_u = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
+          }
+          if (along_u && t_u >= best) continue;
+          if (directionalTime(tri_box) >= best) continue;
+          if (along_u && !(margin <= 0.0)) {
+            const Direction dir(u, motion);
+            double support = 0.0;
+            if (t_u < best && margin > 0.0 && n_axes > 0)
+              t_u = std::max(t_u, secondOrderTime<kAxes>(margin, u, dir, motion, horizon, &support));
+            if (t_u < best && margin > 0.0 && motion.turning)
+              t_u = std::max(t_u, bodyAxisTime(v.data(), 3, X_MB.p, u, dir, support, r + eta, motion, 0.0));
+            if (t_u >= best) continue;
           }
           visitTriangle(i, v);
         }
@@ -791,9 +895,8 @@ struct MeshBvh::Impl {
       if (far_t < best) { stack[sp] = far_node; stack_t[sp++] = far_t; }
       if (near_t < best) { stack[sp] = near_node; stack_t[sp++] = near_t; }
     }
-    if (best_index != std::numeric_limits<int>::min()) {
-      // best_index ≥ 0: position in bvh.order_; < 0: the hint, encoded −1 − triangle.
-      limiting->triangle = best_index >= 0 ? bvh.order_[static_cast<size_t>(best_index)] : -1 - best_index;
+    if (best_index >= 0) {  // its position in bvh.order_
+      limiting->triangle = bvh.order_[static_cast<size_t>(best_index)];
       limiting->closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, best_d, best_core_B, best_tri_B,
                                                       best_abc_B[0], best_abc_B[1], best_abc_B[2]);
     }
@@ -882,10 +985,14 @@ MeshBvh::MeshBvh(TriangleMesh mesh) : mesh_(std::move(mesh)) {
   dipoles_.shrink_to_fit();
   tri_boxes_.resize(static_cast<size_t>(n));
   tri_vertices_.resize(static_cast<size_t>(n));
+  tri_centroids_.resize(static_cast<size_t>(n));
+  position_.resize(static_cast<size_t>(n));
   for (int i = 0; i < n; ++i) {
     const int t = order_[static_cast<size_t>(i)];
+    position_[static_cast<size_t>(t)] = i;
     tri_boxes_[static_cast<size_t>(i)] = boxes[static_cast<size_t>(t)];
     tri_vertices_[static_cast<size_t>(i)] = {mesh_.vertex(t, 0), mesh_.vertex(t, 1), mesh_.vertex(t, 2)};
+    tri_centroids_[static_cast<size_t>(i)] = centroid(tri_vertices_[static_cast<size_t>(i)]);
   }
   bounds_ = nodes_.front().box;
   max_coordinate_ = bounds_.lo.cwiseAbs().cwiseMax(bounds_.hi.cwiseAbs()).maxCoeff();

@@ -115,8 +115,10 @@ class MeshBvh {
   std::vector<Node> nodes_;       ///< depth-first: an inner node's left child follows it
   std::vector<NodeDipole> dipoles_;  ///< per node, indexed like nodes_
   std::vector<int> order_;  ///< triangle indices, grouped by leaf
+  std::vector<int> position_;  ///< per triangle: its index into order_ (order_'s inverse)
   std::vector<Aabb> tri_boxes_;   ///< per triangle, indexed like order_ (leaf-contiguous)
   std::vector<std::array<Vec3, 3>> tri_vertices_;  ///< corners, indexed like order_
+  std::vector<Vec3> tri_centroids_;  ///< (a + b + c) / 3, indexed like order_ (the bounds' centre)
   /// Per node: second-order far-field moment Σ_t (x_t − c) A_tᵀ (x_t centroid, A_t area vector).
   std::vector<Mat3> dipole_moment_;
 };

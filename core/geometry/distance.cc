@@ -230,7 +230,14 @@ double boxTriangleSq(const Vec3& e, const Vec3& a, const Vec3& b, const Vec3& c,
   auto gap = [&](int i, double x0, double x1) {  // distance of [x0, x1] to [lo_i, hi_i]
     return std::max({0.0, lo[i] - x1, x0 - hi[i]});
   };
-  auto skip = [&](double lower_sq) { return lower_sq > best * (1.0 + 1e-6) + 1e-16; };
+  // The pairs are met in a fixed order and the first of the least distance is kept, so a pair can
+  // also be skipped where its bound exceeds any distance of a later pair: it is then not the
+  // least. The triangle vertices' distances to the box (cheap, measured again below in their
+  // turn, by the same expressions) give one before the box vertices are measured, which the
+  // first box vertex, however far, would otherwise set.
+  double later = std::numeric_limits<double>::infinity();
+  for (const Vec3* p : {&a, &b, &c}) later = std::min(later, (p->cwiseMax(-e).cwiseMin(e) - *p).squaredNorm());
+  auto skip = [&](double lower_sq) { return lower_sq > std::min(best, later) * (1.0 + 1e-6) + 1e-16; };
   // Box vertices vs triangle.
   const TriangleFrame frame(a, b, c);
   for (int k = 0; k < 8; ++k) {
