@@ -14,6 +14,7 @@ void Watchdog::beat(const std::string& service, Clock::time_point now) {
   Entry& e = entries_[service];
   endEpisode(e, now);
   if (now > e.last) e.last = now;
+  if (now > e.aged) e.aged = now;
 }
 
 void Watchdog::shiftOver(Clock::time_point now, bool record) {
@@ -31,7 +32,7 @@ void Watchdog::shiftOver(Clock::time_point now, bool record) {
       // later, instead of never.
       const auto credit = gap - std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(0.25 * silent_after_));
       for (auto& [name, e] : entries_)
-        if (e.last != Clock::time_point{} && !e.silent) e.last = std::min(e.last + credit, now);
+        if (e.aged != Clock::time_point{} && !e.silent) e.aged = std::min(e.aged + credit, now);
     }
   }
   last_update_ = std::max(last_update_, now);
@@ -41,8 +42,8 @@ std::vector<std::string> Watchdog::update(Clock::time_point now) {
   std::vector<std::string> out;
   shiftOver(now, true);
   for (auto& [name, e] : entries_) {
-    if (e.last == Clock::time_point{} || e.silent) continue;
-    if (std::chrono::duration<double>(now - e.last).count() > silent_after_) {
+    if (e.aged == Clock::time_point{} || e.silent) continue;
+    if (std::chrono::duration<double>(now - e.aged).count() > silent_after_) {
       e.silent = true;
       e.episode = static_cast<int>(episodes_.size());
       episodes_.push_back({name, seconds(e.last) + silent_after_, -1.0});

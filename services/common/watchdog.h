@@ -14,7 +14,9 @@
 // launcher's sockets. It is not counted against any service: every newest heartbeat is moved on
 // by the gap less a quarter of silent_after (a 2.5 s stall of the launcher had it kill and
 // restart all five healthy services; the quarter keeps a launcher whose every loop is slow
-// finding a dead service, later). Each such pause is recorded (pauses()).
+// finding a dead service, later). Each such pause is recorded (pauses()). The credit only delays
+// the verdict: silentFor() and an episode's start are the service's own silence, from its newest
+// heartbeat (they under-reported it by the credit before).
 #pragma once
 
 #include <chrono>
@@ -47,7 +49,8 @@ class Watchdog {
   /// Re-evaluates every service at `now`; returns the services that became Silent in this call.
   std::vector<std::string> update(Clock::time_point now);
   Health health(const std::string& service) const;
-  /// Seconds since the newest heartbeat (< 0: none yet).
+  /// Seconds since the newest heartbeat (< 0: none yet), the watchdog's own pauses included (they
+  /// only delay its verdict).
   double silentFor(const std::string& service, Clock::time_point now) const;
   void reset(const std::string& service, Clock::time_point now);
   const std::vector<Episode>& episodes() const { return episodes_; }
@@ -63,7 +66,8 @@ class Watchdog {
 
  private:
   struct Entry {
-    Clock::time_point last{};
+    Clock::time_point last{};  ///< the newest heartbeat, as it came (silentFor, an episode's start)
+    Clock::time_point aged{};  ///< the same, moved on by this watchdog's own pauses: what is aged
     bool silent = false;
     int episode = -1;
   };

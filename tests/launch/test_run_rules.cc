@@ -123,6 +123,12 @@ TEST(Watchdog, ItsOwnPauseIsNotCountedAgainstTheServices) {
   EXPECT_LE(found_ms, 4440);
   EXPECT_EQ(w.health("scene"), Watchdog::Health::Alive);
   EXPECT_EQ(w.pauses().size(), 1u);  // 20 ms steps are no pauses
+  // The credit delays the verdict only: the silence reported is the resolver's own, from its
+  // last beat at 1.0 s (it read 1.2 s at 4.4 s, and an episode from 3.4 s, before).
+  const auto found = t0 + std::chrono::milliseconds(found_ms);
+  EXPECT_NEAR(w.silentFor("resolver", found), found_ms * 1e-3 - 1.0, 1e-9);
+  ASSERT_EQ(w.episodes().size(), 1u);
+  EXPECT_NEAR(w.episodes()[0].start_s, 1.0 + 1.2, 1e-9);
 }
 
 // A launcher whose every loop is slow (0.7 s under load, each gap above half the limit) is not
