@@ -13,6 +13,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -98,13 +99,13 @@ bool unlocked(const std::string& name) {  // nobody holds the entry's lock: left
 
 // A shared-memory entry is left behind when nobody holds its lock any more (what `fastdds shm
 // clean` removes): entries of other, live Fast DDS processes (parallel runs) are not counted.
-size_t orphaned(const std::set<std::string>& before) {
-  size_t n = 0;
+std::vector<std::string> orphaned(const std::set<std::string>& before) {
+  std::vector<std::string> out;
   for (const std::string& name : shmSegments()) {
     if (before.count(name) || name.size() < 3 || name.compare(name.size() - 3, 3, "_el") == 0) continue;
-    if (unlocked(name)) ++n;
+    if (unlocked(name)) out.push_back(name);
   }
-  return n;
+  return out;
 }
 
 // The Fast DDS shared-memory entries a process has open or mapped (/proc/PID/fd, /proc/PID/maps):
@@ -469,6 +470,7 @@ int main(int argc, char** argv) {
   const Clock::time_point t_start = Clock::now();
   Watchdog watchdog(silent_after, t_start);
   std::map<pid_t, std::set<std::string>> shm_of;  // pid -> the shared-memory entries it had open
+  noteShm(getpid(), &shm_of[getpid()]);            // this launcher's own participant's
   auto noteAllShm = [&] {
     for (const ChildStatus& c : sup.status())
       if (c.running) noteShm(c.pid, &shm_of[c.pid]);
@@ -1176,7 +1178,14 @@ int main(int argc, char** argv) {
   dp.reset();
   // Entries left by this launcher's own dead processes (a SIGKILL leaves them): removed by name.
   for (const auto& [pid, names] : shm_of) rep.shm_removed += removeOwnShm(names);
-  rep.shm_left = orphaned(shm_before);
+  // Left behind: this lab's (an entry one of its processes, or this launcher, had open) and, apart,
+  // the new unheld entries no process of this lab was seen holding (another Fast DDS program on
+  // this machine, e.g. a parallel lab whose process was killed: they used to be counted as this
+  // lab's).
+  for (const std::string& name : orphaned(shm_before)) {
+    const bool ours = std::any_of(shm_of.begin(), shm_of.end(), [&](const auto& p) { return p.second.count(name) > 0; });
+    ++(ours ? rep.shm_left : rep.shm_left_other);
+  }
 
   // The report.
   rep.recording = lab.recording;

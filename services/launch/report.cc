@@ -119,8 +119,12 @@ void printSummary(const RunReport& r) {
   std::printf("  late joiner: %zu of %llu HandStates and the SceneDescription %s%s\n", r.late_states,
               static_cast<unsigned long long>(r.hands), r.late_description ? "received" : "NOT received",
               r.late_ms >= 0 ? (" in " + std::to_string(static_cast<int>(r.late_ms)) + " ms").c_str() : "");
-  std::printf("  exit codes at shutdown:%s; shared-memory segments left: %zu%s\n", r.exits.c_str(), r.shm_left,
-              r.shm_removed ? (" (" + std::to_string(r.shm_removed) + " left by this lab's killed processes, removed)").c_str() : "");
+  std::printf("  exit codes at shutdown:%s; shared-memory segments left: %zu%s%s\n", r.exits.c_str(), r.shm_left,
+              r.shm_removed ? (" (" + std::to_string(r.shm_removed) + " left by this lab's killed processes, removed)").c_str() : "",
+              r.shm_left_other ? ("; " + std::to_string(r.shm_left_other) +
+                                  " more unheld since the start that no process of this lab had open (another Fast DDS program on "
+                                  "this machine?), not removed").c_str()
+                               : "");
   if (!r.foreign.empty()) {
     std::string names;
     for (const std::string& f : r.foreign) names += (names.empty() ? "" : ", ") + f;
@@ -211,6 +215,7 @@ nlohmann::json reportJson(const RunReport& r) {
                    {"launcher_pauses", pauses}, {"launcher_pause_count", r.launcher_pause_count}};
   j["late_joiner"] = {{"hand_states", r.late_states}, {"scene_description", r.late_description}, {"ms", orNull(r.late_ms)}};
   j["shm_segments_left"] = r.shm_left;
+  j["shm_segments_left_other"] = r.shm_left_other;
   j["shm_segments_removed"] = r.shm_removed;
   j["clean_shutdown"] = r.clean_shutdown;
   j["dead_at_end"] = r.dead_at_end;

@@ -112,6 +112,7 @@ struct RunReport {
   std::string exits;
   bool clean_shutdown = false;
   std::size_t shm_left = 0, shm_removed = 0;
+  std::size_t shm_left_other = 0;  ///< new unheld entries that no process of this lab was seen holding
   std::vector<std::string> dead_at_end;
   std::vector<std::string> foreign;     ///< services of another lab seen on this domain
   std::string partition;                ///< --partition ("" = none)
