@@ -26,6 +26,11 @@ void Delivery::published(std::uint64_t run, std::uint64_t frame) {
   if (frame > 0) seen(run, frame);
 }
 
+void Delivery::unobserved(std::uint64_t run, std::uint64_t first, std::uint64_t last) {
+  if (first == 0 || last < first || blind_.size() >= 4096) return;  // (bounded: a day's pauses)
+  blind_.push_back({{run, first}, last});
+}
+
 std::uint64_t Delivery::highest(std::uint64_t run) const {
   auto it = highest_.find(run);
   return it == highest_.end() ? 0 : it->second;
@@ -40,7 +45,18 @@ DeliveryCounts Delivery::counts(size_t hand, const std::map<std::uint64_t, std::
     for (auto it = stale_[hand].lower_bound({run, 1}); it != stale_[hand].end() && it->first == run && it->second <= n; ++it)
       if (!fresh_[hand].count(*it)) ++c.stale;
   }
-  c.lost = c.expected - c.fresh - c.stale;
+  // Frames of a blind window (merged: windows may overlap) with no state of this hand.
+  std::set<Key> blind;
+  for (const auto& [from, last] : blind_) {
+    auto e = expected.find(from.first);
+    if (e == expected.end()) continue;
+    for (std::uint64_t k = from.second; k <= last && k <= e->second; ++k) {
+      const Key key{from.first, k};
+      if (!fresh_[hand].count(key) && !stale_[hand].count(key)) blind.insert(key);
+    }
+  }
+  c.unobserved = blind.size();
+  c.lost = c.expected - c.fresh - c.stale - c.unobserved;
   return c;
 }
 
@@ -65,6 +81,13 @@ RunVerdict evaluateRun(const RunFigures& f) {
   for (const auto& [cluster, c] : f.delivery) {
     const double allowed = f.lockstep ? 0.0 : std::floor(f.loss_budget * static_cast<double>(c.expected));
     if (c.expected == 0) fail(cluster + ": no frame expected (nothing was replayed)");
+    // Frames this launcher did not watch cannot be vouched for: judged by the same budget, as
+    // such (they used to be counted lost).
+    if (static_cast<double>(c.unobserved) > allowed) {
+      std::snprintf(b, sizeof b, "%s: %llu of %llu frames not observed (this launcher did not watch; budget %.0f)", cluster.c_str(),
+                    static_cast<unsigned long long>(c.unobserved), static_cast<unsigned long long>(c.expected), allowed);
+      fail(b);
+    }
     if (static_cast<double>(c.lost) > allowed) {
       std::snprintf(b, sizeof b, "%s: %llu of %llu frames lost (budget %.0f)", cluster.c_str(),
                     static_cast<unsigned long long>(c.lost), static_cast<unsigned long long>(c.expected), allowed);

@@ -3,6 +3,9 @@
 // delivered fresh (at least one HandState of it, not stale), delivered stale (only stale ones:
 // flagged by the resolver, or older than the stale limit when received, whatever the flag says)
 // or lost (none). Re-published held states carry the frame they hold, so they add no frames.
+// Frames published while the subscriber itself did not watch (the launcher stopped, starved or
+// stalled: its readers keep the newest sample only, so what came meanwhile was superseded in its
+// own queue, not lost by the lab) and of which no state came are counted apart, as unobserved.
 //
 // And the verdict of `godhand-launch --check` from the run's figures (evaluateRun): one reason
 // per failed condition, so the report says why.
@@ -18,6 +21,7 @@ namespace godhand {
 
 struct DeliveryCounts {
   std::uint64_t expected = 0, fresh = 0, stale = 0, lost = 0;
+  std::uint64_t unobserved = 0;  ///< no state seen, published while this subscriber did not watch
 };
 
 class Delivery {
@@ -28,6 +32,9 @@ class Delivery {
   void add(size_t hand, std::uint64_t run, std::uint64_t frame, bool stale);
   /// The ingest's run `run` published frame `frame` (seen as a HandTarget, or known otherwise).
   void published(std::uint64_t run, std::uint64_t frame);
+  /// Frames first..last of `run` were published while this subscriber did not watch (its own
+  /// pause): those without a state count as unobserved, not lost.
+  void unobserved(std::uint64_t run, std::uint64_t first, std::uint64_t last);
   /// Runs in order of first appearance and the highest frame seen of each (published or delivered).
   const std::vector<std::uint64_t>& runs() const { return runs_; }
   std::uint64_t highest(std::uint64_t run) const;
@@ -40,6 +47,7 @@ class Delivery {
   using Key = std::pair<std::uint64_t, std::uint64_t>;  // run, frame
   void seen(std::uint64_t run, std::uint64_t frame);
   std::vector<std::set<Key>> fresh_, stale_;
+  std::vector<std::pair<Key, std::uint64_t>> blind_;  // (run, first frame), last frame
   std::vector<std::uint64_t> runs_;
   std::map<std::uint64_t, std::uint64_t> highest_;
 };

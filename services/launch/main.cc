@@ -624,6 +624,11 @@ int main(int argc, char** argv) {
   std::uint64_t last_scene_step = 0;
   RecoveryLog recovery(static_cast<int>(C));  // each restart: when every hand was fresh again
   Delivery delivery(C);
+  struct BlindWindow {  // frames published while this launcher did not watch (see its main loop)
+    std::uint64_t run = 0, first = 0;
+    std::int64_t until_ns = 0;  // the pause's end: the first frame sampled later closes the window
+    bool open = false;
+  } blind;
   int exit_code = 0;
   std::string failure;
   // The replay: its first frame's arrival here is time 0 of every drill and of the report's times.
@@ -821,6 +826,10 @@ int main(int argc, char** argv) {
     msg::HandTarget t;
     while (ht_in->take(t)) {
       delivery.published(t.stamp().run(), t.stamp().frame());
+      if (blind.open && (t.stamp().run() != blind.run || t.stamp().source_time_ns() > blind.until_ns)) {
+        if (t.stamp().run() == blind.run && t.stamp().frame() > blind.first) delivery.unobserved(blind.run, blind.first, t.stamp().frame() - 1);
+        blind.open = false;
+      }
       if (t.stamp().frame() > 0) {
         if (t_replay == Clock::time_point{}) t_replay = Clock::now();
         if (t.stamp().run() != replay_run) {  // a (re)started ingest: its frames count from 1 again
@@ -951,9 +960,18 @@ int main(int argc, char** argv) {
     restarts[name] = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(restart_delay));
     if (name == "scene") setSceneDown(true);
   };
+  Clock::time_point last_drain = Clock::now();
   while (!stopRequested()) {
     dp->waitForData(Clock::now() + std::chrono::milliseconds(20));
+    // This launcher's own pause (as its watchdog's: longer than half the silent limit): the frames
+    // published meanwhile were superseded in its keep-newest readers, also while its DDS threads
+    // worked off the sockets' backlog after it. The window runs from the newest frame seen before
+    // to the first frame sampled after the pause ended (closed in drain()); of its frames, those
+    // of which no state comes are not observed rather than lost (Delivery).
+    if (!lockstep && secondsSince(last_drain) > 0.5 * silent_after && replay_run != 0 && !blind.open)
+      blind = {replay_run, replay_frame + 1, svc::nowNs(), true};
     drain();
+    last_drain = Clock::now();
     if (secondsSince(last_shm_scan) >= 1.0) {
       noteAllShm();
       last_shm_scan = Clock::now();

@@ -42,9 +42,11 @@ void printSummary(const RunReport& r) {
               r.stale_after_s);
   for (size_t c = 0; c < r.clusters.size() && c < r.delivery.size(); ++c) {
     const DeliveryCounts& d = r.delivery[c];
-    std::printf("  delivery %-8s frames expected %llu, fresh %llu, stale %llu, lost %llu\n", r.clusters[c].c_str(),
+    std::printf("  delivery %-8s frames expected %llu, fresh %llu, stale %llu, lost %llu%s\n", r.clusters[c].c_str(),
                 static_cast<unsigned long long>(d.expected), static_cast<unsigned long long>(d.fresh),
-                static_cast<unsigned long long>(d.stale), static_cast<unsigned long long>(d.lost));
+                static_cast<unsigned long long>(d.stale), static_cast<unsigned long long>(d.lost),
+                d.unobserved ? (", not observed " + std::to_string(d.unobserved) + " (published while this launcher did not watch)").c_str()
+                             : "");
   }
   if (r.have_source) std::printf("  %s\n", describeSource(r.source, r.source_runs).c_str());
   else std::printf("  source: no counts from the ingest (no heartbeat with its source arrived)\n");
@@ -200,7 +202,8 @@ nlohmann::json reportJson(const RunReport& r) {
   nlohmann::json delivery = nlohmann::json::object();
   for (size_t c = 0; c < r.clusters.size() && c < r.delivery.size(); ++c)
     delivery[r.clusters[c]] = {{"expected", r.delivery[c].expected}, {"fresh", r.delivery[c].fresh},
-                               {"stale", r.delivery[c].stale}, {"lost", r.delivery[c].lost}};
+                               {"stale", r.delivery[c].stale}, {"lost", r.delivery[c].lost},
+                               {"unobserved", r.delivery[c].unobserved}};
   j["delivery"] = delivery;
   nlohmann::json services = nlohmann::json::object();
   for (const auto& [name, s] : r.services)

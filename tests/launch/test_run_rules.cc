@@ -197,6 +197,47 @@ TEST(Delivery, RunsOfARestartedIngestCountApart) {
   EXPECT_EQ(c.lost, 10u);
 }
 
+// The launcher's own pause (SIGSTOP 2.5 s): frames published meanwhile were superseded in its
+// keep-newest readers. Those without a state are not observed, not lost; those whose state came
+// count as usual; windows may overlap; frames beyond the expected ones and other runs' windows
+// count nothing.
+TEST(Delivery, FramesPublishedWhileTheLauncherDidNotWatchAreNotObservedNotLost) {
+  Delivery d(2);
+  const std::uint64_t run = 5;
+  for (std::uint64_t k = 1; k <= 40; ++k) {
+    if (k <= 10 || k >= 31) d.add(0, run, k, false);  // hand 0: 11..30 not seen
+    if (k <= 10 || k == 20 || k >= 31) d.add(1, run, k, k == 20);  // hand 1: its frame 20 came, stale
+  }
+  d.add(0, run, 35, true);   // (stale copy of a fresh frame: still fresh)
+  d.unobserved(run, 11, 25);  // the pause
+  d.unobserved(run, 20, 30);  // overlapping: one window 11..30
+  d.unobserved(9, 1, 40);     // another run, not expected
+  d.unobserved(run, 0, 3);    // frame 0: refused
+  d.unobserved(run, 8, 7);    // empty: refused
+  const std::map<std::uint64_t, std::uint64_t> expected{{run, 42}};
+  const DeliveryCounts a = d.counts(0, expected), b = d.counts(1, expected);
+  EXPECT_EQ(a.expected, 42u);
+  EXPECT_EQ(a.fresh, 20u);        // 1..10, 31..40
+  EXPECT_EQ(a.unobserved, 20u);  // 11..30
+  EXPECT_EQ(a.lost, 2u);         // 41, 42: after the pause, really lost
+  EXPECT_EQ(b.fresh, 20u);
+  EXPECT_EQ(b.stale, 1u);        // 20
+  EXPECT_EQ(b.unobserved, 19u);  // 11..30 but 20
+  EXPECT_EQ(b.lost, 2u);
+  EXPECT_EQ(a.expected, a.fresh + a.stale + a.lost + a.unobserved);
+  // The verdict says so: 20 of 42 not observed is beyond a 5 % budget, and named as such.
+  RunFigures f;
+  f.loss_budget = 0.05;
+  f.delivery["right"] = a;
+  f.late_joiner_ok = true;
+  f.margin = 1e-4;
+  f.states = 100;
+  const RunVerdict v = evaluateRun(f);
+  EXPECT_FALSE(v.ok);
+  ASSERT_EQ(v.reasons.size(), 1u);
+  EXPECT_NE(v.reasons[0].find("20 of 42 frames not observed"), std::string::npos) << v.reasons[0];
+}
+
 namespace {
 RunFigures goodRun() {
   RunFigures f;

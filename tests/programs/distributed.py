@@ -385,6 +385,11 @@ def case_launcher_paused(recording):
     check("killing it for a restart" not in text and j.get("watchdog", {}).get("restarted") == [],
           f"no service killed for the launcher's own pause ({j.get('watchdog', {}).get('restarted')})")
     check(j.get("dead_at_end") == [], f"nothing dead at the end ({j.get('dead_at_end')})")
+    # The frames published during the pause (2.5 s at 24 Hz) were superseded in the launcher's own
+    # keep-newest readers: not observed, not lost (they were counted lost).
+    for name, c in j.get("delivery", {}).items():
+        check(c.get("unobserved", 0) >= 20 and c.get("lost", 0) < c.get("unobserved", 0),
+              f"{name}: frames of the pause not observed, not lost ({c})")
     check(p.returncode == 0, f"exit 0 ({p.returncode})")
     common_checks(j)
 
