@@ -629,6 +629,7 @@ int main(int argc, char** argv) {
     std::int64_t until_ns = 0;  // the pause's end: the first frame sampled later closes the window
     bool open = false;
   } blind;
+  std::int64_t own_pause_end_ns = 0;  // when this launcher's latest own pause ended (its tracker-clock time)
   int exit_code = 0;
   std::string failure;
   // The replay: its first frame's arrival here is time 0 of every drill and of the report's times.
@@ -879,17 +880,23 @@ int main(int argc, char** argv) {
     if (!lockstep) scoreAwaiting(false);
     msg::HandState h;
     while (hs_in->take(h)) {
-      const double lat = h.stamp().source_time_ns() > 0 ? static_cast<double>(svc::nowNs() - h.stamp().source_time_ns()) * 1e-3 : 0.0;
+      double lat = h.stamp().source_time_ns() > 0 ? static_cast<double>(svc::nowNs() - h.stamp().source_time_ns()) * 1e-3 : 0.0;
       if (h.hand() >= C || h.cluster() != lab.clusters[h.hand()].name) {  // not this lab's hand
         reportForeign("a HandState of cluster '" + h.cluster().to_string() + "' (hand " + std::to_string(h.hand()) + ")");
         continue;
       }
       // Stale whatever the cause: flagged by the resolver, or older than the stale limit here.
       // (Lock-step frames are never stale by age: a slow deterministic run is still exact.)
-      const bool too_old = !lockstep && h.stamp().source_time_ns() > 0 && lat * 1e-6 > stale_after;
+      // A state sampled before this launcher's own latest pause ended and read only after it is old
+      // by the launcher's fault, not the lab's: its age is neither a stale verdict nor a latency.
+      const bool own_late = !lockstep && h.stamp().source_time_ns() > 0 && h.stamp().source_time_ns() <= own_pause_end_ns;
+      const bool too_old = !lockstep && !own_late && h.stamp().source_time_ns() > 0 && lat * 1e-6 > stale_after;
       const bool stale_rx = h.stale() || too_old;
       // The resolver must have flagged it (0.1 s allowed for the way from the resolver to here).
-      if (!lockstep && lat * 1e-6 > stale_after + 0.1 && h.stamp().source_time_ns() > 0 && !h.stale() && !(h.held() && run_over)) ++rep.old_unmarked;
+      if (!lockstep && !own_late && lat * 1e-6 > stale_after + 0.1 && h.stamp().source_time_ns() > 0 && !h.stale() &&
+          !(h.held() && run_over))
+        ++rep.old_unmarked;
+      if (own_late) lat = 0.0;
       delivery.add(h.hand(), h.stamp().run(), h.stamp().frame(), stale_rx);
       if (lockstep) {
         FrameHands& f = pending[h.stamp().frame()];
@@ -968,8 +975,10 @@ int main(int argc, char** argv) {
     // worked off the sockets' backlog after it. The window runs from the newest frame seen before
     // to the first frame sampled after the pause ended (closed in drain()); of its frames, those
     // of which no state comes are not observed rather than lost (Delivery).
-    if (!lockstep && secondsSince(last_drain) > 0.5 * silent_after && replay_run != 0 && !blind.open)
-      blind = {replay_run, replay_frame + 1, svc::nowNs(), true};
+    if (!lockstep && secondsSince(last_drain) > 0.5 * silent_after) {
+      own_pause_end_ns = svc::nowNs();
+      if (replay_run != 0 && !blind.open) blind = {replay_run, replay_frame + 1, own_pause_end_ns, true};
+    }
     drain();
     last_drain = Clock::now();
     if (secondsSince(last_shm_scan) >= 1.0) {
