@@ -55,7 +55,7 @@ class Delivery {
 /// The figures `--check` judges.
 struct RunFigures {
   bool lockstep = false;
-  double loss_budget = 0.0;                 ///< lost frames allowed per hand, fraction of expected
+  double loss_budget = 0.0;                 ///< lost (and not observed) frames allowed per hand, fraction of expected
   std::map<std::string, DeliveryCounts> delivery;  ///< per cluster
   std::vector<std::string> dead_at_end;     ///< services not running / silent when the run ended
   bool late_joiner_ok = false;

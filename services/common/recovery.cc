@@ -6,10 +6,16 @@ namespace godhand {
 
 RecoveryLog::RecoveryLog(int hands) : stale_(static_cast<size_t>(std::max(hands, 0)), 0) {}
 
-void RecoveryLog::restarted(const std::string& service, double t_s) {
+void RecoveryLog::restarted(const std::string& service, double t_s, long pid) {
+  if (restarts_.size() >= kMaxRestarts) {  // bounded (a crash loop for a day): the oldest recovered one goes
+    auto it = std::find_if(restarts_.begin(), restarts_.end(), [](const Restart& r) { return r.fresh_again_s >= 0; });
+    restarts_.erase(it != restarts_.end() ? it : restarts_.begin());
+    ++dropped_;
+  }
   Restart r;
   r.service = service;
   r.restarted_s = t_s;
+  r.pid = pid;
   restarts_.push_back(r);
 }
 
@@ -23,8 +29,8 @@ void RecoveryLog::state(int hand, bool stale, double t_s) {
   const bool all_fresh = std::none_of(stale_.begin(), stale_.end(), [](unsigned char s) { return s != 0; });
   for (Restart& r : restarts_) {
     if (r.fresh_again_s >= 0 || t_s < r.restarted_s) continue;
-    if (all_fresh) r.fresh_again_s = t_s;
-    else ++r.stale_states;
+    if (all_fresh && r.beat && t_s >= r.up_s) r.fresh_again_s = t_s;
+    else if (stale) ++r.stale_states;
   }
 }
 
@@ -38,9 +44,12 @@ void RecoveryLog::sceneRunBegan(double t_s) {
   }
 }
 
-void RecoveryLog::heartbeat(const std::string& service, double t_s) {
+void RecoveryLog::heartbeat(const std::string& service, long pid, double t_s) {
   for (Restart& r : restarts_)
-    if (r.service == service && r.up_s < 0 && t_s >= r.restarted_s) r.up_s = t_s;
+    if (r.service == service && r.pid == pid && !r.beat) {
+      r.beat = true;
+      r.up_s = std::max(t_s, r.restarted_s);
+    }
 }
 
 void RecoveryLog::replayEnded(double t_s) {

@@ -251,7 +251,7 @@ int main(int argc, char** argv) {
   cli.multi("--kill", &kill_specs, "SERVICE@WHEN",
             "fault drill: SIGKILL SERVICE, then restart it; WHEN = S or Ss (seconds after the replay's first frame) "
             "or fN (at tracker frame N), e.g. scene@2, resolver@f120, ingest@1.5s");
-  cli.option("--loss-budget", &loss_budget, "F", "--check (live): lost frames allowed per cluster, as a fraction of the expected frames");
+  cli.option("--loss-budget", &loss_budget, "F", "--check (live): lost frames (and frames this launcher did not observe) allowed per cluster, as a fraction of the expected frames");
   cli.flag("--check", &check,
            "exit 1 unless penetration <= margin, joint gap <= 1e-6 m, no solver failure, lost frames within --loss-budget "
            "(lock-step: none lost, none stale), every service running at the end, the late joiner served, every drill done, no other lab on the domain");
@@ -629,7 +629,8 @@ int main(int argc, char** argv) {
     std::int64_t until_ns = 0;  // the pause's end: the first frame sampled later closes the window
     bool open = false;
   } blind;
-  std::int64_t own_pause_end_ns = 0;  // when this launcher's latest own pause ended (its tracker-clock time)
+  // This launcher's latest own pause (tracker-clock ns): what it makes a state's age look like.
+  std::int64_t own_pause_start_ns = 0, own_pause_end_ns = 0;
   int exit_code = 0;
   std::string failure;
   // The replay: its first frame's arrival here is time 0 of every drill and of the report's times.
@@ -821,14 +822,17 @@ int main(int argc, char** argv) {
     takeStatus();
     for (const auto& [name, pid] : beats) {  // the restarted process's own (not a heartbeat of the dead one in flight)
       const ChildStatus* c = sup.find(name);
-      if (c && c->pid == pid) recovery.heartbeat(name, replayS());
+      if (c && c->pid == pid) recovery.heartbeat(name, pid, replayS());
     }
     beats.clear();
     msg::HandTarget t;
     while (ht_in->take(t)) {
       delivery.published(t.stamp().run(), t.stamp().frame());
       if (blind.open && (t.stamp().run() != blind.run || t.stamp().source_time_ns() > blind.until_ns)) {
-        if (t.stamp().run() == blind.run && t.stamp().frame() > blind.first) delivery.unobserved(blind.run, blind.first, t.stamp().frame() - 1);
+        // Closed by the first frame sampled after the pause, or by a new ingest run (the old run's
+        // frames up to its highest then).
+        const std::uint64_t last = t.stamp().run() == blind.run ? t.stamp().frame() - 1 : delivery.highest(blind.run);
+        if (last >= blind.first) delivery.unobserved(blind.run, blind.first, last);
         blind.open = false;
       }
       if (t.stamp().frame() > 0) {
@@ -887,15 +891,17 @@ int main(int argc, char** argv) {
       }
       // Stale whatever the cause: flagged by the resolver, or older than the stale limit here.
       // (Lock-step frames are never stale by age: a slow deterministic run is still exact.)
-      // A state sampled before this launcher's own latest pause ended and read only after it is old
-      // by the launcher's fault, not the lab's: its age is neither a stale verdict nor a latency.
-      const bool own_late = !lockstep && h.stamp().source_time_ns() > 0 && h.stamp().source_time_ns() <= own_pause_end_ns;
-      const bool too_old = !lockstep && !own_late && h.stamp().source_time_ns() > 0 && lat * 1e-6 > stale_after;
+      // A state sampled before this launcher's own latest pause ended and read only after it is
+      // old partly by the launcher's fault: the part of the pause after its sample is taken off its
+      // age for the stale verdict, and its age is no latency (not measured).
+      const std::int64_t src_ns = h.stamp().source_time_ns();
+      const bool own_late = !lockstep && src_ns > 0 && src_ns <= own_pause_end_ns;
+      const double age_s = own_late ? lat * 1e-6 - static_cast<double>(own_pause_end_ns - std::max(src_ns, own_pause_start_ns)) * 1e-9
+                                    : lat * 1e-6;
+      const bool too_old = !lockstep && src_ns > 0 && age_s > stale_after;
       const bool stale_rx = h.stale() || too_old;
       // The resolver must have flagged it (0.1 s allowed for the way from the resolver to here).
-      if (!lockstep && !own_late && lat * 1e-6 > stale_after + 0.1 && h.stamp().source_time_ns() > 0 && !h.stale() &&
-          !(h.held() && run_over))
-        ++rep.old_unmarked;
+      if (!lockstep && age_s > stale_after + 0.1 && src_ns > 0 && !h.stale() && !(h.held() && run_over)) ++rep.old_unmarked;
       if (own_late) lat = 0.0;
       delivery.add(h.hand(), h.stamp().run(), h.stamp().frame(), stale_rx);
       if (lockstep) {
@@ -967,20 +973,27 @@ int main(int argc, char** argv) {
     restarts[name] = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(restart_delay));
     if (name == "scene") setSceneDown(true);
   };
-  Clock::time_point last_drain = Clock::now();
+  Clock::time_point last_drain = Clock::now();  // (taken before each drain: a pause inside one counts too)
   while (!stopRequested()) {
     dp->waitForData(Clock::now() + std::chrono::milliseconds(20));
-    // This launcher's own pause (as its watchdog's: longer than half the silent limit): the frames
-    // published meanwhile were superseded in its keep-newest readers, also while its DDS threads
-    // worked off the sockets' backlog after it. The window runs from the newest frame seen before
-    // to the first frame sampled after the pause ended (closed in drain()); of its frames, those
-    // of which no state comes are not observed rather than lost (Delivery).
-    if (!lockstep && secondsSince(last_drain) > 0.5 * silent_after) {
-      own_pause_end_ns = svc::nowNs();
-      if (replay_run != 0 && !blind.open) blind = {replay_run, replay_frame + 1, own_pause_end_ns, true};
+    // This launcher's own pause (as its watchdog records one: longer than the silent limit; a
+    // slow loop of 0.6-1.2 s is not one, its missed frames stay lost): the frames published
+    // meanwhile were superseded in its keep-newest readers. The window runs from the newest frame
+    // seen before to the last one sampled before the pause ended (closed in drain() by the first
+    // sampled after it; a second pause while it is open extends it); of its frames, those of which
+    // no state comes are not observed rather than lost (Delivery).
+    {
+      const Clock::time_point before = Clock::now();
+      const double gap_s = std::chrono::duration<double>(before - last_drain).count();
+      if (!lockstep && gap_s > silent_after) {
+        own_pause_end_ns = svc::nowNs();
+        own_pause_start_ns = own_pause_end_ns - static_cast<std::int64_t>(gap_s * 1e9);
+        if (blind.open) blind.until_ns = own_pause_end_ns;
+        else if (replay_run != 0) blind = {replay_run, replay_frame + 1, own_pause_end_ns, true};
+      }
+      last_drain = before;
     }
     drain();
-    last_drain = Clock::now();
     if (secondsSince(last_shm_scan) >= 1.0) {
       noteAllShm();
       last_shm_scan = Clock::now();
@@ -1057,7 +1070,8 @@ int main(int argc, char** argv) {
         break;
       }
       watchdog.reset(it->first, Clock::now());
-      recovery.restarted(it->first, replayS());
+      const ChildStatus* started = sup.find(it->first);
+      recovery.restarted(it->first, replayS(), started ? started->pid : -1);
       if (it->first == "scene") scene_restarted = true;
       for (size_t i = 0; i < drills.size(); ++i)
         if (drill_fired[i] && drills[i].service == it->first && drill_reports[i].restarted_s < 0) drill_reports[i].restarted_s = replayS();
@@ -1081,6 +1095,10 @@ int main(int argc, char** argv) {
     if (ingest_done) {
       run_over = true;
       recovery.replayEnded(replayS());
+      if (blind.open) {  // the replay ended inside the window: up to its highest frame
+        if (delivery.highest(blind.run) >= blind.first) delivery.unobserved(blind.run, blind.first, delivery.highest(blind.run));
+        blind.open = false;
+      }
       // Let the last states arrive (lock-step: until every frame is in, bounded).
       const Clock::time_point until = Clock::now() + std::chrono::seconds(lockstep ? 5 : 1);
       while (Clock::now() < until && (!lockstep || n_frames < 0 || next_frame <= static_cast<std::uint64_t>(n_frames))) {
@@ -1286,6 +1304,7 @@ int main(int argc, char** argv) {
   rep.stale_first_s = recovery.staleFirst();
   rep.stale_last_s = recovery.staleLast();
   rep.replay_end_s = recovery.replayEnd();
+  rep.restarts_dropped = recovery.dropped();
   for (size_t i = 0; i < drills.size(); ++i)
     if (!drill_fired[i]) rep.drills[i] = {drills[i].spec, drills[i].service, -1.0, -1.0, 0};
   rep.late_ms = rep.late_ms;

@@ -104,16 +104,21 @@ void printSummary(const RunReport& r) {
     std::string back;
     if (x.service == "scene")
       back = x.scene_back_s >= 0 ? "; its first state at " + secs(x.scene_back_s) : "; no state of the new scene seen";
+    const std::string at = x.restarted_s >= 0 ? "at " + secs(x.restarted_s) : "before the replay started";
+    const std::string up = !x.beat ? "no heartbeat of it seen"
+                                   : "its first heartbeat " + (x.up_s >= 0 ? "at " + secs(x.up_s) : std::string("before the replay started"));
     if (x.fresh_again_s >= 0)
-      std::printf("  %s restarted at %s: every hand fresh again at %s (%.2f s later, %llu stale states meanwhile)%s\n", x.service.c_str(),
-                  secs(x.restarted_s).c_str(), secs(x.fresh_again_s).c_str(), x.recoverySeconds(),
-                  static_cast<unsigned long long>(x.stale_states), back.c_str());
+      std::printf("  %s restarted %s: every hand fresh again at %s (%.2f s later, %llu stale states meanwhile; %s)%s\n", x.service.c_str(),
+                  at.c_str(), secs(x.fresh_again_s).c_str(), x.recoverySeconds(), static_cast<unsigned long long>(x.stale_states),
+                  up.c_str(), back.c_str());
     else
-      std::printf("  %s restarted at %s: NOT every hand fresh again by the end (%llu stale states since; %s%s)%s\n", x.service.c_str(),
-                  secs(x.restarted_s).c_str(), static_cast<unsigned long long>(x.stale_states),
-                  x.up_s >= 0 ? ("its first heartbeat at " + secs(x.up_s)).c_str() : "no heartbeat of it seen",
-                  r.replay_end_s >= x.restarted_s ? (", the replay ended at " + secs(r.replay_end_s)).c_str() : "", back.c_str());
+      std::printf("  %s restarted %s: NOT every hand fresh again by the end (%llu stale states since; %s%s)%s\n", x.service.c_str(),
+                  at.c_str(), static_cast<unsigned long long>(x.stale_states), up.c_str(),
+                  r.replay_end_s >= 0 && r.replay_end_s >= x.restarted_s ? (", the replay ended at " + secs(r.replay_end_s)).c_str() : "",
+                  back.c_str());
   }
+  if (r.restarts_dropped > 0)
+    std::printf("  (%llu older restarts that recovered are not listed)\n", static_cast<unsigned long long>(r.restarts_dropped));
   if (r.scene_restart_jump_m > 0 || std::any_of(r.restarts.begin(), r.restarts.end(), [](const RecoveryLog::Restart& x) {
         return x.service == "scene" && x.scene_back_s >= 0;
       }))
@@ -244,9 +249,11 @@ nlohmann::json reportJson(const RunReport& r) {
   nlohmann::json restarts = nlohmann::json::array();
   for (const RecoveryLog::Restart& x : r.restarts)
     restarts.push_back({{"service", x.service}, {"restarted_s", orNull(x.restarted_s)}, {"fresh_again_s", orNull(x.fresh_again_s)},
-                        {"recovery_s", orNull(x.recoverySeconds())}, {"stale_states", x.stale_states}, {"up_s", orNull(x.up_s)},
+                        {"recovery_s", orNull(x.recoverySeconds())}, {"stale_states", x.stale_states},
+                        {"up_s", x.beat ? nlohmann::json(std::max(x.up_s, 0.0)) : nlohmann::json(nullptr)},
                         {"scene_back_s", orNull(x.scene_back_s)}});
   j["restarts"] = restarts;
+  j["restarts_dropped"] = r.restarts_dropped;
   j["restarts_unrecovered"] = std::count_if(r.restarts.begin(), r.restarts.end(),
                                             [](const RecoveryLog::Restart& x) { return x.fresh_again_s < 0; });
   if (r.have_hash && !r.failed()) {

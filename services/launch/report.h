@@ -101,6 +101,7 @@ struct RunReport {
   double stale_first_s = -1, stale_last_s = -1;  ///< the run's first and last stale state
   std::vector<RecoveryLog::Restart> restarts;      ///< every restart, with when every hand was fresh again
   double replay_end_s = -1;                        ///< when the ingest was done (live)
+  std::uint64_t restarts_dropped = 0;              ///< restarts beyond RecoveryLog::kMaxRestarts (recovered ones)
   /// The first restart of `service` at or after t_s (a drill's kill), or nullptr.
   const RecoveryLog::Restart* restartOf(const std::string& service, double t_s) const;
   double scene_restart_jump_m = 0;   ///< largest displacement of an object at rest in both a dead scene's last state and its successor's first seen

@@ -235,7 +235,12 @@ TEST(Delivery, FramesPublishedWhileTheLauncherDidNotWatchAreNotObservedNotLost) 
   const RunVerdict v = evaluateRun(f);
   EXPECT_FALSE(v.ok);
   ASSERT_EQ(v.reasons.size(), 1u);
-  EXPECT_NE(v.reasons[0].find("20 of 42 frames not observed"), std::string::npos) << v.reasons[0];
+  EXPECT_NE(v.reasons[0].find("2 of 42 frames lost and 20 not observed"), std::string::npos) << v.reasons[0];
+  // One budget for both: 5 % of 1000 is 50; 30 lost and 30 not observed is 60, beyond it.
+  f.delivery["right"] = {1000, 940, 0, 30, 30};
+  EXPECT_FALSE(evaluateRun(f).ok);
+  f.delivery["right"] = {1000, 960, 0, 20, 20};
+  EXPECT_TRUE(evaluateRun(f).ok);
 }
 
 namespace {

@@ -78,8 +78,9 @@ def delivery_checks(j):
     d = j.get("delivery", {})
     check(len(d) == j.get("hands"), f"delivery counted for every cluster ({sorted(d)})")
     for name, c in d.items():
-        check(c["fresh"] + c["stale"] + c["lost"] == c["expected"] and c["expected"] > 0,
-              f"{name}: expected {c['expected']} = fresh {c['fresh']} + stale {c['stale']} + lost {c['lost']}")
+        check(c["fresh"] + c["stale"] + c["lost"] + c["unobserved"] == c["expected"] and c["expected"] > 0,
+              f"{name}: expected {c['expected']} = fresh {c['fresh']} + stale {c['stale']} + lost {c['lost']} + not observed "
+              f"{c['unobserved']}")
     if d:
         check(j.get("frames") == min(c["fresh"] for c in d.values()),
               f"'frames' is the count of frames delivered fresh in every cluster ({j.get('frames')})")
@@ -100,7 +101,7 @@ def case_same_hash(recording, env=None):
     check(j.get("penetration_max_m", 1) == b["penetration_max_m"], "same penetration figure as in-process")
     check(j.get("clipped_steps") == b["clipped_steps"], f"same clipped steps ({j.get('clipped_steps')} vs {b['clipped_steps']})")
     for name, c in j.get("delivery", {}).items():
-        check(c == {"expected": b["frames"], "fresh": b["frames"], "stale": 0, "lost": 0},
+        check(c == {"expected": b["frames"], "fresh": b["frames"], "stale": 0, "lost": 0, "unobserved": 0},
               f"lock-step {name}: every frame delivered fresh ({c})")
     delivery_checks(j)
     common_checks(j)
@@ -165,27 +166,7 @@ def case_lab_tracker(recording):
 def case_live(recording):
     # Loss budget 50 %: on a loaded 2-core CI machine the live pipeline was seen to lose 25 % of the
     # frames (the resolver resolves the newest); the counts themselves are checked below.
-    # Another program's unheld segment appears in /dev/shm during the run (a parallel lab's killed
-    # process): reported apart, not as this lab's, and not removed (it used to count as this lab's).
-    fake = f"/dev/shm/fastrtps_godhandtest_{os.getpid()}_{DOMAIN}"
-
-    def plant():
-        for path in (fake, fake + "_el"):
-            with open(path, "wb") as f:
-                f.write(b"\0" * 64)
-    timer = threading.Timer(1.0, plant)
-    timer.start()
-    try:
-        r, j = launch(["--recording", recording, "--check", "--loss-budget", "0.5"])
-    finally:
-        timer.cancel()
-        planted = os.path.exists(fake)
-        for path in (fake, fake + "_el"):
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(path)
-    check(planted, "another program's segment was there when the launcher counted")
-    check(j.get("shm_segments_left") == 0 and j.get("shm_segments_left_other", 0) >= 1,
-          f"it is not counted as this lab's: left {j.get('shm_segments_left')}, others' {j.get('shm_segments_left_other')}")
+    r, j = launch(["--recording", recording, "--check", "--loss-budget", "0.5"])
     check(r.returncode == 0, "godhand-launch (live) --check exited 0")
     s = j.get("services", {})
     for name in ["ingest", "scene", "resolver"] + [k for k in s if k.startswith("solver/")]:
@@ -405,6 +386,14 @@ def case_drills(recording):
         check(d["killed_s"] is not None and d["restarted_s"] is not None and d["restarted_s"] > d["killed_s"],
               f"{name}: killed at {d['killed_s']} s, restarted at {d['restarted_s']} s (from the replay start)")
     check(ds.get("ingest", {}).get("killed_frame", 0) >= 40, f"ingest killed at frame >= 40 ({ds.get('ingest')})")
+    # Each restart's own recovery (the solver's, with about 1.5 s of replay left, is reported but not
+    # asserted here: distributed_restarted_solver_recovers_before_the_replay_ends does that).
+    rs = {x["service"]: x for x in j.get("restarts", [])}
+    for name in ("ingest", "resolver", "scene"):
+        x = rs.get(name, {})
+        check(x.get("recovery_s") is not None and x.get("up_s") is not None,
+              f"{name}: every hand fresh again {x.get('recovery_s')} s after its restart (first heartbeat at {x.get('up_s')} s)")
+    check(rs.get("scene", {}).get("scene_back_s") is not None, f"the restarted scene's first state seen ({rs.get('scene')})")
     check(ds.get("resolver", {}).get("killed_s") is not None and ds["resolver"]["killed_s"] >= 1.0, "resolver killed >= 1 s into the replay")
     check(j.get("ingest_runs") == 2, f"the restarted ingest replayed again: 2 ingest runs ({j.get('ingest_runs')})")
     # The source's counts are summed over the ingest runs: the restarted run read the whole
@@ -614,10 +603,48 @@ def case_profiles_qos():
             check(hb is not None and 0 < hb <= 0.1, f"{f} {e.get('profile_name')}: heartbeat period {hb} s (<= 0.1 s)")
 
 
+@contextlib.contextmanager
+def foreign_segment():
+    """Another program's unheld segment appears in /dev/shm during a launch (a parallel lab's killed
+    process), once the launcher has started its services (after it listed what was there before:
+    their logs exist then). Yields a dict whose "planted" says it was there; removed at the end.
+    Used by a RUN_SERIAL test only: a parallel test would count it as its own leftover."""
+    fake = f"/dev/shm/fastrtps_godhandtest_{os.getpid()}_{DOMAIN}"
+    state = {"planted": False}
+    stop = threading.Event()
+
+    def plant():
+        deadline = time.time() + 120
+        while not stop.is_set() and time.time() < deadline:
+            if os.path.exists(os.path.join(TMP, "logs", "resolver.log")):
+                for path in (fake, fake + "_el"):
+                    with open(path, "wb") as f:
+                        f.write(b"\0" * 64)
+                state["planted"] = True
+                return
+            time.sleep(0.05)
+    t = threading.Thread(target=plant, daemon=True)
+    t.start()
+    try:
+        yield state
+    finally:
+        stop.set()
+        t.join(5)
+        for path in (fake, fake + "_el"):
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(path)
+
+
 def case_kill(service, recording):
     # Half speed: the replay (7 s) outlasts a restart on a loaded machine (a scene was seen taking
     # 3.5 s to come back with a load average of 10 on 2 cores).
-    r, j = launch(["--recording", recording, "--speed", "0.5", "--kill", service + "@1.5", "--restart-delay", "0.5"])
+    with foreign_segment() as seg:
+        r, j = launch(["--recording", recording, "--speed", "0.5", "--kill", service + "@1.5", "--restart-delay", "0.5"])
+    # Another program's unheld segment that appeared during the run is not this lab's: reported
+    # apart and not removed (it used to count as this lab's).
+    check(seg["planted"] and j.get("shm_segments_left") == 0 and j.get("shm_segments_left_other", 0) >= 1,
+          f"another program's segment not counted as this lab's: planted {seg['planted']}, left {j.get('shm_segments_left')}, "
+          f"others' {j.get('shm_segments_left_other')}")
     check(r.returncode == 0, "godhand-launch with the fault drill exited 0")
     d = {k: (-1 if v is None else v) for k, v in j.get("fault_drill", {}).items()}
     check(d.get("killed_s", -1) >= 1.5 and d.get("restarted_s", -1) > d.get("killed_s", 0),
