@@ -470,7 +470,8 @@ int main(int argc, char** argv) {
   const Clock::time_point t_start = Clock::now();
   Watchdog watchdog(silent_after, t_start);
   std::map<pid_t, std::set<std::string>> shm_of;  // pid -> the shared-memory entries it had open
-  noteShm(getpid(), &shm_of[getpid()]);            // this launcher's own participant's
+  std::set<std::string> own_shm;  // this launcher's own participant's entries (not removed by it: only told apart)
+  noteShm(getpid(), &own_shm);
   auto noteAllShm = [&] {
     for (const ChildStatus& c : sup.status())
       if (c.running) noteShm(c.pid, &shm_of[c.pid]);
@@ -1228,7 +1229,8 @@ int main(int argc, char** argv) {
   // this machine, e.g. a parallel lab whose process was killed: they used to be counted as this
   // lab's).
   for (const std::string& name : orphaned(shm_before)) {
-    const bool ours = std::any_of(shm_of.begin(), shm_of.end(), [&](const auto& p) { return p.second.count(name) > 0; });
+    const bool ours = own_shm.count(name) > 0 ||
+                      std::any_of(shm_of.begin(), shm_of.end(), [&](const auto& p) { return p.second.count(name) > 0; });
     ++(ours ? rep.shm_left : rep.shm_left_other);
   }
 
