@@ -4,15 +4,18 @@
 
 namespace godhand {
 
-void Watchdog::endEpisode(Entry& e, Clock::time_point now) {
-  if (e.silent && e.episode >= 0) episodes_[static_cast<size_t>(e.episode)].end_s = seconds(now);
+void Watchdog::endEpisode(Entry& e, Clock::time_point now, bool by_reset) {
+  if (e.silent && e.episode >= 0) {
+    episodes_[static_cast<size_t>(e.episode)].end_s = seconds(now);
+    episodes_[static_cast<size_t>(e.episode)].reset = by_reset;
+  }
   e.silent = false;
   e.episode = -1;
 }
 
 void Watchdog::beat(const std::string& service, Clock::time_point now) {
   Entry& e = entries_[service];
-  endEpisode(e, now);
+  endEpisode(e, now, false);
   if (now > e.last) e.last = now;
   if (now > e.aged) e.aged = now;
 }
@@ -68,7 +71,7 @@ double Watchdog::silentFor(const std::string& service, Clock::time_point now) co
 void Watchdog::reset(const std::string& service, Clock::time_point now) {
   auto it = entries_.find(service);
   if (it == entries_.end()) return;
-  endEpisode(it->second, now);
+  endEpisode(it->second, now, true);
   entries_.erase(it);
 }
 

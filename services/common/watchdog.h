@@ -35,6 +35,7 @@ class Watchdog {
     std::string service;
     double start_s = 0.0;  ///< seconds since the watchdog's origin when it went silent
     double end_s = -1.0;   ///< when it beat again, was reset, or < 0: still silent
+    bool reset = false;    ///< ended by reset() (killed, restarted, ended), not by a heartbeat
   };
 
   struct Pause {
@@ -72,7 +73,7 @@ class Watchdog {
     int episode = -1;
   };
   double seconds(Clock::time_point t) const { return std::chrono::duration<double>(t - origin_).count(); }
-  void endEpisode(Entry& e, Clock::time_point now);
+  void endEpisode(Entry& e, Clock::time_point now, bool by_reset);
   /// A gap since the last update longer than half of silent_after moves every newest heartbeat on
   /// by it (recorded as a pause when `record`); then now is the last update.
   void shiftOver(Clock::time_point now, bool record);

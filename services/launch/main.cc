@@ -630,6 +630,35 @@ int main(int argc, char** argv) {
     std::int64_t until_ns = 0;  // the pause's end: the first frame sampled later closes the window
     bool open = false;
   } blind;
+  // A closed window is held until no service ended or went silent for a while after it (then its
+  // frames were published, and the launcher alone missed them); a service that died or froze in
+  // or right after the pause makes them what they are, lost (a resolver killed during the pause
+  // had 57 frames published by nobody counted as not observed).
+  struct HeldWindow {
+    std::uint64_t run, first, last;
+    Clock::time_point commit_at;
+  };
+  std::vector<HeldWindow> held_blind;
+  auto closeBlind = [&](std::uint64_t last) {
+    if (last >= blind.first && held_blind.size() < 64)
+      held_blind.push_back({blind.run, blind.first, last,
+                            Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(silent_after + 1.0))});
+    blind.open = false;
+  };
+  auto dropBlind = [&] {
+    held_blind.clear();
+    blind.open = false;
+  };
+  auto commitBlind = [&](bool all) {
+    for (auto it = held_blind.begin(); it != held_blind.end();) {
+      if (!all && Clock::now() < it->commit_at) {
+        ++it;
+        continue;
+      }
+      delivery.unobserved(it->run, it->first, it->last);
+      it = held_blind.erase(it);
+    }
+  };
   // This launcher's latest own pause (tracker-clock ns): what it makes a state's age look like.
   std::int64_t own_pause_start_ns = 0, own_pause_end_ns = 0;
   int exit_code = 0;
@@ -659,6 +688,8 @@ int main(int argc, char** argv) {
   std::vector<Pose> gap_poses;
   auto measure = [&](const msg::HandState& h, const SceneSnapshot* snap, double lat_us, bool stale_rx, bool own_scene) {
     if (h.held() && run_over) return;
+    // Frame 0: a state before the replay's first frame (start-up, held): not a state of the run.
+    if (!lockstep && h.stamp().frame() == 0) return;
     if (!h.held() && !stale_rx) {
       if (t_first_state == Clock::time_point{}) t_first_state = Clock::now();
       t_last_state = Clock::now();
@@ -832,9 +863,7 @@ int main(int argc, char** argv) {
       if (blind.open && (t.stamp().run() != blind.run || t.stamp().source_time_ns() > blind.until_ns)) {
         // Closed by the first frame sampled after the pause, or by a new ingest run (the old run's
         // frames up to its highest then).
-        const std::uint64_t last = t.stamp().run() == blind.run ? t.stamp().frame() - 1 : delivery.highest(blind.run);
-        if (last >= blind.first) delivery.unobserved(blind.run, blind.first, last);
-        blind.open = false;
+        closeBlind(t.stamp().run() == blind.run ? t.stamp().frame() - 1 : delivery.highest(blind.run));
       }
       if (t.stamp().frame() > 0) {
         if (t_replay == Clock::time_point{}) t_replay = Clock::now();
@@ -983,10 +1012,12 @@ int main(int argc, char** argv) {
     // seen before to the last one sampled before the pause ended (closed in drain() by the first
     // sampled after it; a second pause while it is open extends it); of its frames, those of which
     // no state comes are not observed rather than lost (Delivery).
+    bool paused_now = false;  // (drills wait a loop: the backlog of the pause is not taken yet)
     {
       const Clock::time_point before = Clock::now();
       const double gap_s = std::chrono::duration<double>(before - last_drain).count();
       if (!lockstep && gap_s > silent_after) {
+        paused_now = true;
         own_pause_end_ns = svc::nowNs();
         own_pause_start_ns = own_pause_end_ns - static_cast<std::int64_t>(gap_s * 1e9);
         if (blind.open) blind.until_ns = own_pause_end_ns;
@@ -1005,6 +1036,8 @@ int main(int argc, char** argv) {
         ingest_done = true;
         continue;
       }
+      recovery.down(c.name, replayS());
+      dropBlind();
       const bool ours = killed_by_us.erase(c.name) > 0 && c.term_signal == SIGKILL;
       if (c.name == "scene") setSceneDown(true);
       if ((restart || ours) && !lockstep) {
@@ -1041,6 +1074,7 @@ int main(int argc, char** argv) {
                   watchdog.pauses().back().duration_s);
       std::fflush(stdout);
     }
+    if (!silent_now.empty()) dropBlind();
     for (const std::string& name : silent_now) {
       std::printf("launch: watchdog: %s silent (no heartbeat for %.1f s)%s\n", name.c_str(), watchdog.silentFor(name, Clock::now()),
                   restart && !lockstep && specOf(name) ? ": killing it for a restart" : "");
@@ -1049,6 +1083,7 @@ int main(int argc, char** argv) {
       if (restart && !lockstep && specOf(name) && sup.signal(name, SIGKILL)) {
         killed_by_us.insert(name);
         rep.watchdog_restarts.push_back(name);
+        recovery.down(name, replayS() - watchdog.silentFor(name, Clock::now()));  // down since its last heartbeat
       }
     }
     for (auto it = restarts.begin(); it != restarts.end();) {
@@ -1080,7 +1115,8 @@ int main(int argc, char** argv) {
       it = restarts.erase(it);
     }
     if (!failure.empty()) break;
-    for (size_t i = 0; i < drills.size(); ++i) {
+    commitBlind(false);
+    for (size_t i = 0; i < drills.size() && !paused_now; ++i) {
       if (drill_fired[i] || !drills[i].due(replayS(), replay_frame)) continue;
       const ChildStatus* c = sup.find(drills[i].service);
       if (!c || !c->running) continue;  // down already (a previous drill): fires once it runs again
@@ -1089,6 +1125,7 @@ int main(int argc, char** argv) {
       drill_fired[i] = 1;
       killed_by_us.insert(drills[i].service);
       drill_reports[i] = {drills[i].spec, drills[i].service, replayS(), -1.0, replay_frame};
+      recovery.down(drills[i].service, replayS());
       if (drills[i].service == "scene") setSceneDown(true);
       std::printf("launch: fault drill %s: SIGKILL %s at %.2f s after the replay start (frame %llu)\n", drills[i].spec.c_str(),
                   drills[i].service.c_str(), replayS(), static_cast<unsigned long long>(replay_frame));
@@ -1096,10 +1133,7 @@ int main(int argc, char** argv) {
     if (ingest_done) {
       run_over = true;
       recovery.replayEnded(replayS());
-      if (blind.open) {  // the replay ended inside the window: up to its highest frame
-        if (delivery.highest(blind.run) >= blind.first) delivery.unobserved(blind.run, blind.first, delivery.highest(blind.run));
-        blind.open = false;
-      }
+      if (blind.open) closeBlind(delivery.highest(blind.run));  // the replay ended inside the window: up to its highest frame
       // Let the last states arrive (lock-step: until every frame is in, bounded).
       const Clock::time_point until = Clock::now() + std::chrono::seconds(lockstep ? 5 : 1);
       while (Clock::now() < until && (!lockstep || n_frames < 0 || next_frame <= static_cast<std::uint64_t>(n_frames))) {
@@ -1250,6 +1284,7 @@ int main(int argc, char** argv) {
   // Frames expected: the replay's frames for the last ingest run (it went to the end), and for a
   // run cut short by a kill the frames it published; a live source: the frames published.
   std::map<std::uint64_t, std::uint64_t> expected;
+  commitBlind(true);  // (held windows at the end: no service died or froze since they closed)
   const std::vector<std::uint64_t>& runs = delivery.runs();
   for (size_t i = 0; i < runs.size(); ++i) {
     const bool last = i + 1 == runs.size();

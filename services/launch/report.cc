@@ -29,7 +29,7 @@ namespace {
 
 const RecoveryLog::Restart* RunReport::restartOf(const std::string& service, double t_s) const {
   for (const RecoveryLog::Restart& x : restarts)
-    if (x.service == service && x.restarted_s >= t_s) return &x;
+    if (x.service == service && x.restarted && x.restarted_s >= t_s) return &x;
   return nullptr;
 }
 
@@ -86,14 +86,16 @@ void printSummary(const RunReport& r) {
     std::printf("  penetration not scored for %ld states in %zu window(s) while the scene was down (its last poses are old)\n",
                 r.penetration_unscored, r.unscored_windows.size());
   for (const Watchdog::Episode& e : r.silent)
-    std::printf("  watchdog: %s silent (no heartbeat for > %.1f s) from %s to %s\n", e.service.c_str(), r.silent_after_s,
-                secs(e.start_s).c_str(), e.end_s < 0 ? "the end" : secs(e.end_s).c_str());
+    std::printf("  watchdog: %s silent (no heartbeat for > %.1f s) from %s to %s%s\n", e.service.c_str(), r.silent_after_s,
+                secs(e.start_s).c_str(), e.end_s < 0 ? "the end" : secs(e.end_s).c_str(),
+                e.end_s >= 0 && e.reset ? " (then it was killed or ended: its outage below)" : "");
   if (r.launcher_pause_count > r.launcher_pauses.size())
     std::printf("  this launcher did not watch for more than %.1f s %llu times (the first %zu below): it was starved or stalled\n",
                 r.silent_after_s, static_cast<unsigned long long>(r.launcher_pause_count), r.launcher_pauses.size());
   for (const Watchdog::Pause& p : r.launcher_pauses)
     std::printf("  this launcher did not watch for %.1f s from %s (stopped, starved or stalled): not counted against the "
-                "services; what it missed meanwhile may be counted lost or late\n",
+                "services; frames published meanwhile of which no state came are counted as not observed, unless a service "
+                "died or froze then (lost)\n",
                 p.duration_s, secs(p.start_s).c_str());
   for (const DrillReport& d : r.drills)
     std::printf("  fault drill %s: killed at %s (frame %llu), restarted at %s (times from the replay start)\n", d.spec.c_str(),
@@ -101,24 +103,37 @@ void printSummary(const RunReport& r) {
   if (r.stale_first_s >= 0 && !r.restarts.empty())
     std::printf("  stale states from %s to %s\n", secs(r.stale_first_s).c_str(), secs(r.stale_last_s).c_str());
   for (const RecoveryLog::Restart& x : r.restarts) {
+    auto at = [](double t) { return t >= 0 ? "at " + secs(t) : std::string("before the replay started"); };
+    std::string line = "  " + x.service + (x.down_known ? " down " + at(x.down_s) : std::string());
+    if (!x.restarted) {
+      std::printf("%s: not restarted by the end\n", line.c_str());
+      continue;
+    }
+    line += (x.down_known ? ", restarted " : " restarted ") + at(x.restarted_s);
     std::string back;
     if (x.service == "scene")
-      back = x.scene_back_s >= 0 ? "; its first state at " + secs(x.scene_back_s) : "; no state of the new scene seen";
-    const std::string at = x.restarted_s >= 0 ? "at " + secs(x.restarted_s) : "before the replay started";
-    const std::string up = !x.beat ? "no heartbeat of it seen"
-                                   : "its first heartbeat " + (x.up_s >= 0 ? "at " + secs(x.up_s) : std::string("before the replay started"));
-    if (x.fresh_again_s >= 0)
-      std::printf("  %s restarted %s: every hand fresh again at %s (%.2f s later, %llu stale states meanwhile; %s)%s\n", x.service.c_str(),
-                  at.c_str(), secs(x.fresh_again_s).c_str(), x.recoverySeconds(), static_cast<unsigned long long>(x.stale_states),
-                  up.c_str(), back.c_str());
-    else
-      std::printf("  %s restarted %s: NOT every hand fresh again by the end (%llu stale states since; %s%s)%s\n", x.service.c_str(),
-                  at.c_str(), static_cast<unsigned long long>(x.stale_states), up.c_str(),
+      back = x.scene_back_s >= 0 ? "; its first state " + at(x.scene_back_s) : "; no state of the new scene seen";
+    const std::string up = !x.beat ? "no heartbeat of it seen" : "its first heartbeat " + at(x.up_s);
+    char b[256];
+    if (x.fresh_again_s >= 0) {
+      if (x.down_known)
+        std::snprintf(b, sizeof b, "%.2f s after it went down, %.2f s after the restart", x.outageSeconds(), x.recoverySeconds());
+      else
+        std::snprintf(b, sizeof b, "%.2f s after the restart", x.recoverySeconds());
+      std::printf("%s: every hand fresh again at %s (%s; %llu stale states meanwhile; %s)%s\n", line.c_str(), secs(x.fresh_again_s).c_str(), b,
+                  static_cast<unsigned long long>(x.stale_states), up.c_str(), back.c_str());
+    } else if (x.superseded) {
+      std::printf("%s: down again before every hand was fresh (the next outage of it goes on; %llu stale states meanwhile; %s)%s\n",
+                  line.c_str(), static_cast<unsigned long long>(x.stale_states), up.c_str(), back.c_str());
+    } else {
+      std::printf("%s: NOT every hand fresh again by the end (%llu stale states since; %s%s)%s\n", line.c_str(),
+                  static_cast<unsigned long long>(x.stale_states), up.c_str(),
                   r.replay_end_s >= 0 && r.replay_end_s >= x.restarted_s ? (", the replay ended at " + secs(r.replay_end_s)).c_str() : "",
                   back.c_str());
+    }
   }
   if (r.restarts_dropped > 0)
-    std::printf("  (%llu older restarts that recovered are not listed)\n", static_cast<unsigned long long>(r.restarts_dropped));
+    std::printf("  (%llu older outages that recovered or were superseded are not listed)\n", static_cast<unsigned long long>(r.restarts_dropped));
   if (r.scene_restart_jump_m > 0 || std::any_of(r.restarts.begin(), r.restarts.end(), [](const RecoveryLog::Restart& x) {
         return x.service == "scene" && x.scene_back_s >= 0;
       }))
@@ -216,7 +231,8 @@ nlohmann::json reportJson(const RunReport& r) {
                       {"late", s.late}, {"deadline_misses", s.deadline_misses}, {"state", s.state}, {"health", s.health}};
   j["services"] = services;
   nlohmann::json silent = nlohmann::json::array();
-  for (const Watchdog::Episode& e : r.silent) silent.push_back({{"service", e.service}, {"from_s", orNull(e.start_s)}, {"to_s", orNull(e.end_s)}});
+  for (const Watchdog::Episode& e : r.silent)
+    silent.push_back({{"service", e.service}, {"from_s", orNull(e.start_s)}, {"to_s", orNull(e.end_s)}, {"ended_by_kill_or_exit", e.reset}});
   nlohmann::json pauses = nlohmann::json::array();
   for (const Watchdog::Pause& p : r.launcher_pauses) pauses.push_back({{"from_s", p.start_s}, {"duration_s", p.duration_s}});
   j["watchdog"] = {{"silent_after_s", r.silent_after_s}, {"silent", silent}, {"restarted", r.watchdog_restarts},
@@ -248,14 +264,16 @@ nlohmann::json reportJson(const RunReport& r) {
   }
   nlohmann::json restarts = nlohmann::json::array();
   for (const RecoveryLog::Restart& x : r.restarts)
-    restarts.push_back({{"service", x.service}, {"restarted_s", orNull(x.restarted_s)}, {"fresh_again_s", orNull(x.fresh_again_s)},
+    restarts.push_back({{"service", x.service}, {"down_s", x.down_known ? nlohmann::json(std::max(x.down_s, 0.0)) : nlohmann::json(nullptr)},
+                        {"restarted", x.restarted}, {"superseded", x.superseded}, {"outage_s", orNull(x.outageSeconds())},
+                        {"restarted_s", x.restarted ? orNull(x.restarted_s) : nullptr}, {"fresh_again_s", orNull(x.fresh_again_s)},
                         {"recovery_s", orNull(x.recoverySeconds())}, {"stale_states", x.stale_states},
                         {"up_s", x.beat ? nlohmann::json(std::max(x.up_s, 0.0)) : nlohmann::json(nullptr)},
                         {"scene_back_s", orNull(x.scene_back_s)}});
   j["restarts"] = restarts;
   j["restarts_dropped"] = r.restarts_dropped;
   j["restarts_unrecovered"] = std::count_if(r.restarts.begin(), r.restarts.end(),
-                                            [](const RecoveryLog::Restart& x) { return x.fresh_again_s < 0; });
+                                            [](const RecoveryLog::Restart& x) { return x.fresh_again_s < 0 && !x.superseded; });
   if (r.have_hash && !r.failed()) {
     char hex[32];
     std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(r.result_hash));
