@@ -23,12 +23,13 @@ RecoveryLog::Restart& RecoveryLog::open(const std::string& service) {
   return restarts_.back();
 }
 
-void RecoveryLog::down(const std::string& service, double t_s) {
+void RecoveryLog::down(const std::string& service, double from_s, double by_s) {
   // Killed, then seen ended: one outage, from the earlier.
   for (auto it = restarts_.rbegin(); it != restarts_.rend(); ++it)
     if (it->service == service && !it->restarted && !it->superseded) return;
   Restart& r = open(service);
-  r.down_s = t_s;
+  r.down_s = std::min(from_s, by_s);
+  r.down_by_s = std::max(from_s, by_s);
   r.down_known = true;
 }
 

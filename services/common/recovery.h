@@ -27,7 +27,9 @@ class RecoveryLog {
  public:
   struct Restart {
     std::string service;
-    double down_s = -1;         ///< when it went down (killed by the launcher, or seen ended); < 0: not known
+    double down_s = -1;         ///< when it went down: the earliest it can have (killed by the launcher, its last
+                                ///< heartbeat, or the launcher's last look before it was seen ended)
+    double down_by_s = -1;      ///< and the latest (= down_s when known exactly: a kill)
     bool down_known = false;
     double restarted_s = -1;
     bool restarted = false;     ///< started again (else still down)
@@ -41,16 +43,17 @@ class RecoveryLog {
     /// Seconds from the restart (or the replay's start, if later) to every hand fresh again; < 0
     /// when it never was.
     double recoverySeconds() const { return fresh_again_s >= 0 ? fresh_again_s - (restarted_s > 0 ? restarted_s : 0.0) : -1; }
-    /// Seconds from the service going down (when known) to every hand fresh again; < 0 otherwise.
+    /// Seconds from the service going down (the earliest it can have) to every hand fresh again; < 0
+    /// when not known or never fresh again.
     double outageSeconds() const { return fresh_again_s >= 0 && down_known ? fresh_again_s - (down_s > 0 ? down_s : 0.0) : -1; }
     std::vector<signed char> hand;  ///< per hand since the first heartbeat: −1 no state, 0 newest stale, 1 newest fresh
   };
 
   explicit RecoveryLog(int hands);
 
-  /// `service` went down at t_s (the launcher killed it, or saw it end; a second call before its
-  /// restart is the same outage).
-  void down(const std::string& service, double t_s);
+  /// `service` went down some time in [from_s, by_s] (the launcher killed it: from = by; or saw it
+  /// end, after its pause perhaps); a second call before its restart is the same outage.
+  void down(const std::string& service, double from_s, double by_s);
   /// `service` was started again at t_s, as process `pid` (a restart without a down() first starts
   /// its own outage there).
   void restarted(const std::string& service, double t_s, long pid);

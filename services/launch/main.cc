@@ -636,18 +636,24 @@ int main(int argc, char** argv) {
   // had 57 frames published by nobody counted as not observed).
   struct HeldWindow {
     std::uint64_t run, first, last;
+    Clock::time_point from, to;  // the pause's start, the window's close
     Clock::time_point commit_at;
   };
   std::vector<HeldWindow> held_blind;
+  Clock::time_point blind_from{};  // the open window's pause start
   auto closeBlind = [&](std::uint64_t last) {
     if (last >= blind.first && held_blind.size() < 64)
-      held_blind.push_back({blind.run, blind.first, last,
+      held_blind.push_back({blind.run, blind.first, last, blind_from, Clock::now(),
                             Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(silent_after + 1.0))});
     blind.open = false;
   };
-  auto dropBlind = [&] {
-    held_blind.clear();
-    blind.open = false;
+  // A service died or froze some time in [lo, hi]: the windows that time can overlap are dropped
+  // (their frames may not have been published: lost). A kill by this launcher after a window
+  // closed leaves it (its frames were out before the kill).
+  auto dropBlind = [&](Clock::time_point lo, Clock::time_point hi) {
+    held_blind.erase(std::remove_if(held_blind.begin(), held_blind.end(), [&](const HeldWindow& w) { return lo <= w.to && hi >= w.from; }),
+                     held_blind.end());
+    if (blind.open && hi >= blind_from) blind.open = false;
   };
   auto commitBlind = [&](bool all) {
     for (auto it = held_blind.begin(); it != held_blind.end();) {
@@ -670,6 +676,7 @@ int main(int argc, char** argv) {
   std::vector<DrillReport> drill_reports(drills.size());
   std::vector<unsigned char> drill_fired(drills.size(), 0);
   std::set<std::string> killed_by_us;  // SIGKILLed by a drill or the watchdog: restart it
+  std::map<std::string, Clock::time_point> killed_at;  // when (the death's time, for the pause windows)
   bool scene_down = false;             // the scene's poses are old (killed, silent, restarting)
   double unscored_from = -1;
   std::map<int, ObjectMotion> scene_last;  // newest state per dynamic object
@@ -1004,6 +1011,7 @@ int main(int argc, char** argv) {
     if (name == "scene") setSceneDown(true);
   };
   Clock::time_point last_drain = Clock::now();  // (taken before each drain: a pause inside one counts too)
+  Clock::time_point last_poll = Clock::now();
   while (!stopRequested()) {
     dp->waitForData(Clock::now() + std::chrono::milliseconds(20));
     // This launcher's own pause (as its watchdog records one: longer than the silent limit; a
@@ -1020,8 +1028,12 @@ int main(int argc, char** argv) {
         paused_now = true;
         own_pause_end_ns = svc::nowNs();
         own_pause_start_ns = own_pause_end_ns - static_cast<std::int64_t>(gap_s * 1e9);
-        if (blind.open) blind.until_ns = own_pause_end_ns;
-        else if (replay_run != 0) blind = {replay_run, replay_frame + 1, own_pause_end_ns, true};
+        if (blind.open) {
+          blind.until_ns = own_pause_end_ns;
+        } else if (replay_run != 0) {
+          blind = {replay_run, replay_frame + 1, own_pause_end_ns, true};
+          blind_from = last_drain;
+        }
       }
       last_drain = before;
     }
@@ -1030,14 +1042,27 @@ int main(int argc, char** argv) {
       noteAllShm();
       last_shm_scan = Clock::now();
     }
+    const Clock::time_point poll_from = last_poll;  // a child seen ended now ended after the last poll
+    last_poll = Clock::now();
     for (const ChildStatus& c : sup.poll()) {
+      // When it died: at this launcher's kill, or some time since the last poll (within a pause of
+      // this launcher: any time in it; not before its last heartbeat).
+      Clock::time_point lo = poll_from, hi = Clock::now();
+      if (auto k = killed_at.find(c.name); k != killed_at.end() && killed_by_us.count(c.name)) {
+        lo = hi = k->second;
+        killed_at.erase(k);
+      } else if (watchdog.silentFor(c.name, Clock::now()) >= 0) {
+        lo = std::max(lo, Clock::now() - std::chrono::duration_cast<Clock::duration>(
+                                             std::chrono::duration<double>(watchdog.silentFor(c.name, Clock::now()))));
+      }
       watchdog.reset(c.name, Clock::now());  // ended: not running (shown DOWN), no longer silent
       if (c.name == "ingest" && c.exited && c.exit_code == 0) {
         ingest_done = true;
         continue;
       }
-      recovery.down(c.name, replayS());
-      dropBlind();
+      const double seen_s = replayS();
+      recovery.down(c.name, seen_s - secondsSince(lo), seen_s - secondsSince(hi));
+      dropBlind(lo, hi);
       const bool ours = killed_by_us.erase(c.name) > 0 && c.term_signal == SIGKILL;
       if (c.name == "scene") setSceneDown(true);
       if ((restart || ours) && !lockstep) {
@@ -1074,7 +1099,9 @@ int main(int argc, char** argv) {
                   watchdog.pauses().back().duration_s);
       std::fflush(stdout);
     }
-    if (!silent_now.empty()) dropBlind();
+    for (const std::string& name : silent_now)  // silent since its last heartbeat
+      dropBlind(Clock::now() - std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(watchdog.silentFor(name, Clock::now()))),
+                Clock::now());
     for (const std::string& name : silent_now) {
       std::printf("launch: watchdog: %s silent (no heartbeat for %.1f s)%s\n", name.c_str(), watchdog.silentFor(name, Clock::now()),
                   restart && !lockstep && specOf(name) ? ": killing it for a restart" : "");
@@ -1082,8 +1109,10 @@ int main(int argc, char** argv) {
       if (name == "scene") setSceneDown(true);
       if (restart && !lockstep && specOf(name) && sup.signal(name, SIGKILL)) {
         killed_by_us.insert(name);
+        killed_at[name] = Clock::now();
         rep.watchdog_restarts.push_back(name);
-        recovery.down(name, replayS() - watchdog.silentFor(name, Clock::now()));  // down since its last heartbeat
+        const double last_beat_s = replayS() - watchdog.silentFor(name, Clock::now());  // down since its last heartbeat
+        recovery.down(name, last_beat_s, last_beat_s);
       }
     }
     for (auto it = restarts.begin(); it != restarts.end();) {
@@ -1116,7 +1145,9 @@ int main(int argc, char** argv) {
     }
     if (!failure.empty()) break;
     commitBlind(false);
-    for (size_t i = 0; i < drills.size() && !paused_now; ++i) {
+    // (Drills wait while a pause's window is open: until a frame sampled after the pause is taken,
+    // the replay's frame here is one from before it.)
+    for (size_t i = 0; i < drills.size() && !paused_now && !blind.open; ++i) {
       if (drill_fired[i] || !drills[i].due(replayS(), replay_frame)) continue;
       const ChildStatus* c = sup.find(drills[i].service);
       if (!c || !c->running) continue;  // down already (a previous drill): fires once it runs again
@@ -1124,8 +1155,9 @@ int main(int argc, char** argv) {
       if (!sup.signal(drills[i].service, SIGKILL)) continue;
       drill_fired[i] = 1;
       killed_by_us.insert(drills[i].service);
+      killed_at[drills[i].service] = Clock::now();
       drill_reports[i] = {drills[i].spec, drills[i].service, replayS(), -1.0, replay_frame};
-      recovery.down(drills[i].service, replayS());
+      recovery.down(drills[i].service, replayS(), replayS());
       if (drills[i].service == "scene") setSceneDown(true);
       std::printf("launch: fault drill %s: SIGKILL %s at %.2f s after the replay start (frame %llu)\n", drills[i].spec.c_str(),
                   drills[i].service.c_str(), replayS(), static_cast<unsigned long long>(replay_frame));

@@ -104,7 +104,11 @@ void printSummary(const RunReport& r) {
     std::printf("  stale states from %s to %s\n", secs(r.stale_first_s).c_str(), secs(r.stale_last_s).c_str());
   for (const RecoveryLog::Restart& x : r.restarts) {
     auto at = [](double t) { return t >= 0 ? "at " + secs(t) : std::string("before the replay started"); };
-    std::string line = "  " + x.service + (x.down_known ? " down " + at(x.down_s) : std::string());
+    std::string line = "  " + x.service;
+    if (x.down_known)
+      line += x.down_by_s - x.down_s > 0.1 ? " down between " + secs(std::max(x.down_s, 0.0)) + " and " + secs(x.down_by_s) +
+                                                 " (seen ended after this launcher's pause)"
+                                           : " down " + at(x.down_s);
     if (!x.restarted) {
       std::printf("%s: not restarted by the end\n", line.c_str());
       continue;
@@ -265,6 +269,7 @@ nlohmann::json reportJson(const RunReport& r) {
   nlohmann::json restarts = nlohmann::json::array();
   for (const RecoveryLog::Restart& x : r.restarts)
     restarts.push_back({{"service", x.service}, {"down_s", x.down_known ? nlohmann::json(std::max(x.down_s, 0.0)) : nlohmann::json(nullptr)},
+                        {"down_by_s", x.down_known ? nlohmann::json(std::max(x.down_by_s, 0.0)) : nlohmann::json(nullptr)},
                         {"restarted", x.restarted}, {"superseded", x.superseded}, {"outage_s", orNull(x.outageSeconds())},
                         {"restarted_s", x.restarted ? orNull(x.restarted_s) : nullptr}, {"fresh_again_s", orNull(x.fresh_again_s)},
                         {"recovery_s", orNull(x.recoverySeconds())}, {"stale_states", x.stale_states},

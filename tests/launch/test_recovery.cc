@@ -12,7 +12,7 @@ TEST(RecoveryLog, EachOutageHasItsOwnRecovery) {
   log.state(0, false, 0.5);
   log.state(1, false, 0.5);
   // The solver of hand 0 is killed at 1.0 s: its states go stale, then it is restarted.
-  log.down("solver-right", 1.0);
+  log.down("solver-right", 1.0, 1.0);
   log.state(0, true, 1.1);
   log.state(1, false, 1.1);
   log.restarted("solver-right", 1.5, 101);
@@ -22,8 +22,8 @@ TEST(RecoveryLog, EachOutageHasItsOwnRecovery) {
   log.state(0, false, 2.0);  // hand 0 fresh; hand 1 has had no state since the heartbeat: not yet
   log.state(1, false, 2.0);  // every hand fresh again: the solver's recovery
   // Then the scene: both hands stale, killed at 2.5, restarted at 3.0, beats at 3.1, back at 3.2.
-  log.down("scene", 2.5);
-  log.down("scene", 2.55);  // (then seen ended: the same outage)
+  log.down("scene", 2.5, 2.5);
+  log.down("scene", 2.5, 2.55);  // (then seen ended: the same outage)
   log.state(0, true, 2.6);
   log.state(1, true, 2.6);
   log.restarted("scene", 3.0, 102);
@@ -55,13 +55,31 @@ TEST(RecoveryLog, EachOutageHasItsOwnRecovery) {
   EXPECT_EQ(log.unrecovered(), 0);
 }
 
+// A death the launcher saw only after its own pause: it went down some time in the pause, the
+// outage runs from the earliest it can have (its stale states counted from there).
+TEST(RecoveryLog, ADeathInsideAPauseIsAnInterval) {
+  RecoveryLog log(1);
+  log.state(0, false, 3.9);
+  log.down("resolver", 4.0, 6.5);
+  log.down("resolver", 6.5, 6.5);  // (the same outage)
+  log.state(0, true, 6.6);
+  log.restarted("resolver", 6.8, 9);
+  log.heartbeat("resolver", 9, 7.1);
+  log.state(0, false, 7.5);
+  ASSERT_EQ(log.restarts().size(), 1u);
+  EXPECT_DOUBLE_EQ(log.restarts()[0].down_s, 4.0);
+  EXPECT_DOUBLE_EQ(log.restarts()[0].down_by_s, 6.5);
+  EXPECT_DOUBLE_EQ(log.restarts()[0].outageSeconds(), 3.5);
+  EXPECT_EQ(log.restarts()[0].stale_states, 1u);
+}
+
 // Seen in a soak: the resolver restarted, hand 0's first new state fresh, hand 1's still stale and
 // held for two frames. Each hand's newest state before the restart was fresh, which must not count.
 TEST(RecoveryLog, EveryHandNeedsAFreshStateOfItsOwnAfterTheRestart) {
   RecoveryLog log(2);
   log.state(0, false, 9.0);
   log.state(1, false, 9.0);
-  log.down("resolver", 9.0);
+  log.down("resolver", 9.0, 9.0);
   log.restarted("resolver", 9.36, 7);
   log.heartbeat("resolver", 7, 9.69);
   log.state(0, false, 9.86);
@@ -89,7 +107,7 @@ TEST(RecoveryLog, OnlyTheRestartedProcessesOwnHeartbeatCounts) {
   EXPECT_FALSE(log.restarts()[0].beat);
   EXPECT_LT(log.restarts()[0].outageSeconds(), 0);  // down time not known
   // A crash loop: the first restart's process never beats and dies; the second's beats.
-  log.down("resolver", 1.9);
+  log.down("resolver", 1.9, 1.9);
   log.restarted("resolver", 2.0, 201);
   log.heartbeat("resolver", 201, 2.4);
   log.state(0, false, 2.5);
@@ -99,7 +117,7 @@ TEST(RecoveryLog, OnlyTheRestartedProcessesOwnHeartbeatCounts) {
   EXPECT_DOUBLE_EQ(log.restarts()[1].fresh_again_s, 2.5);
   EXPECT_EQ(log.unrecovered(), 0);
   // Down and never restarted: unrecovered.
-  log.down("scene", 3.0);
+  log.down("scene", 3.0, 3.0);
   EXPECT_FALSE(log.restarts()[2].restarted);
   EXPECT_EQ(log.unrecovered(), 1);
 }
