@@ -305,8 +305,8 @@ void HandSolver::generateContacts(const HandInput& in) {
     const bool driven = in.tracked && (!in.has_target || in.has_target[b]);
     if (driven) reach += askedMotion(X[b], in.targets[b], geo::boundingRadius(shape));
     reach = std::min(reach, params_.max_reach);
-    // A body whose last sweep hit gets every triangle of its contact shell as a candidate (the
-    // face it was about to hit, e.g. the second face of a crease), and so does a box (a palm)
+    // A body that hit within its last kShellSweeps sweeps gets every triangle of its contact
+    // shell as a candidate (the face it was about to hit, e.g. the second face of a crease), and so does a box (a palm)
     // always; the others only the closest-point candidates, which is cheaper. (A palm resting on
     // the bunny touches triangles that no part's closest point finds, and its first solve of a
     // round turned into one of them and was solved again in 370 of 386 rounds on pinch-bunny,
@@ -367,7 +367,7 @@ double HandSolver::sweepLastMotion(bool* started_inside) {
     const geo::SweepResult& s = body_sweeps_[b];
     countSweep(s);
     if (s.started_inside) *started_inside = true;
-    blocked_[b] = s.hit ? 1 : 0;
+    blocked_[b] = s.hit ? kShellSweeps : static_cast<unsigned char>(blocked_[b] > 0 ? blocked_[b] - 1 : 0);
     const bool stuck = params_.stuck_rotation > 0.0 && s.hit && s.toc < 1e-3 && !s.started_inside;
     // Stuck again under a cap: a quarter of it next (a palm resting on a coarse mesh's ridge
     // turns into the face beyond it however small the turn its rows allow, down to the ridge's
