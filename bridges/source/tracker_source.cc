@@ -262,10 +262,16 @@ void fillSilences(std::vector<TrackerFrame>* frames, double rate_hz, const std::
   }
 }
 
-/// A replay of frames decoded up front (every file format).
+/// A replay of frames decoded up front (every file format). The file is read and checked whole
+/// when it is opened (base: its records and every rejection); stats() counts as received only the
+/// records of the frames played so far (and every rejected one), the others as not played: a
+/// replay cut short (killed, --frames, --duration) received what it played. A record is a frame of
+/// the file (a line, a datagram, a Leap frame), or for a synthetic script (records_are_hands) a hand
+/// sample; frames filled into silences come from no record.
 class FrameReplay : public TrackerSource {
  public:
-  FrameReplay(std::string what, std::string path, std::vector<TrackerFrame> frames, SourceStats base, const SourceOptions& o)
+  FrameReplay(std::string what, std::string path, std::vector<TrackerFrame> frames, SourceStats base, const SourceOptions& o,
+              bool records_are_hands = false)
       : what_(std::move(what)), path_(std::move(path)), frames_(std::move(frames)), base_(std::move(base)) {
     const std::int64_t limit = o.frames;
     Plausibility plausible(o);
@@ -289,6 +295,13 @@ class FrameReplay : public TrackerSource {
     if (limit > 0) end_ = std::min(end_, static_cast<size_t>(limit));
     for (const TrackerFrame& f : frames_)
       for (const TrackedHand& h : f.hands) (h.right ? right_ : left_) = true;
+    records_.resize(frames_.size());
+    for (size_t i = 0; i < frames_.size(); ++i) {
+      const bool filled = i < fill_.is_filled.size() && fill_.is_filled[i];
+      records_[i] = filled ? 0u : records_are_hands ? static_cast<std::uint32_t>(frames_[i].hands.size()) : 1u;
+      records_total_ += records_[i];
+      if (i < end_) records_to_limit_ += records_[i];
+    }
   }
   std::string describe() const override {
     char buf[200];
@@ -307,6 +320,7 @@ class FrameReplay : public TrackerSource {
   bool hasSide(bool right) const override { return right ? right_ : left_; }
   bool next(TrackerFrame* frame) override {
     if (pos_ >= end_) return false;
+    records_played_ += records_[pos_];
     *frame = frames_[pos_++];
     return true;
   }
@@ -314,6 +328,9 @@ class FrameReplay : public TrackerSource {
   SourceStats stats() const override {
     SourceStats s = base_;
     s.frames = pos_;
+    s.not_played = records_total_ - records_played_;
+    s.not_played_beyond_limit = records_total_ - records_to_limit_;
+    s.received = base_.received > s.not_played ? base_.received - s.not_played : 0;
     return s;
   }
   const std::vector<TrackerFrame>& all() const { return frames_; }
@@ -330,6 +347,8 @@ class FrameReplay : public TrackerSource {
   std::string what_, path_;
   std::vector<TrackerFrame> frames_;
   SourceStats base_;
+  std::vector<std::uint32_t> records_;  // per frame: the records it came from (0: filled into a silence)
+  std::uint64_t records_total_ = 0, records_to_limit_ = 0, records_played_ = 0;
   double rate_ = 0.0;
   size_t pos_ = 0, end_ = 0;
   bool right_ = false, left_ = false;
@@ -458,7 +477,7 @@ std::unique_ptr<FrameReplay> openReplay(const std::string& path, const std::stri
       s.detail += (i ? ", " : "") + g.by_reason[i].first + " " + std::to_string(g.by_reason[i].second);
     s.detail += g.by_reason.empty() ? "none)" : ")";
     if (dropped) s.by_reason.emplace_back("hand not in the hand map (id, or not its side)", dropped);
-    return std::make_unique<FrameReplay>("synthetic", path, std::move(g.frames), std::move(s), o);
+    return std::make_unique<FrameReplay>("synthetic", path, std::move(g.frames), std::move(s), o, /*records_are_hands=*/true);
   }
   if (format == "dtrack") return dtrackReplay(path, dtrackFileRecords(path), o, "dtrack replay");
   if (format == "raw") {

@@ -32,8 +32,14 @@ struct SourceStats {
   std::uint64_t frames = 0;    ///< frames delivered
   std::uint64_t rejected = 0;  ///< frames and hands dropped as bad input
   std::string detail;          ///< one line: the rejections by reason
-  std::uint64_t received = 0;  ///< records / datagrams that came in (live and replayed DTrack)
+  /// Records / datagrams that came in. A replay reads and checks its whole file when it is opened:
+  /// its received are the records of the frames played so far plus every rejected record (its
+  /// rejections are the whole file's); the records of frames not played are not_played, not received.
+  std::uint64_t received = 0;
   std::vector<std::pair<std::string, std::uint64_t>> by_reason;  ///< rejections by reason (nonzero)
+  /// A replay: records of the file whose frames were not played (yet), and of them those beyond the
+  /// frames limit (SourceOptions::frames: never played). A live source: 0.
+  std::uint64_t not_played = 0, not_played_beyond_limit = 0;
 };
 
 /// How a source is opened: calibration and source-specific settings. The defaults reproduce the

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstdio>
 #include <cstring>
 #include <thread>
 
@@ -39,6 +40,8 @@ void installStopHandlers() {
   sigemptyset(&ign.sa_mask);
   sigaction(SIGPIPE, &ign, nullptr);
 }
+
+void lineBufferedStdout() { std::setvbuf(stdout, nullptr, _IOLBF, BUFSIZ); }
 
 bool stopRequested() { return g_stop.load(); }
 

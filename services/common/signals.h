@@ -31,4 +31,12 @@ void requestStop();
 ///   while (!waitForStop(std::chrono::milliseconds(100))) { ...periodic work... }
 bool waitForStop(std::chrono::milliseconds timeout);
 
+/// What a kill must not lose: makes stdout line-buffered (stderr is unbuffered already), so that a
+/// line a program writes to its log (godhand-launch sends a service's stdout and stderr to one
+/// file) is in the file once the line ends, not in a buffer that a SIGKILL (a fault drill, the
+/// watchdog) throws away. Our own log lines go to stderr; stdout carries what libraries print
+/// there (std::cout, printf): block-buffered in a file, a killed process lost them. Call it
+/// before anything is written to stdout (every service: first thing in svc::Service).
+void lineBufferedStdout();
+
 }  // namespace godhand

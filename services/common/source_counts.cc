@@ -10,6 +10,12 @@ std::uint64_t SourceCounts::rejectedTotal() const {
   return n;
 }
 
+std::uint64_t SourceCounts::notPlayedTotal() const {
+  std::uint64_t n = 0;
+  for (const auto& r : not_played) n += r.second;
+  return n;
+}
+
 std::map<std::string, std::uint64_t> reasonMap(const std::vector<std::pair<std::string, std::uint64_t>>& by_reason) {
   std::map<std::string, std::uint64_t> m;
   for (const auto& [reason, n] : by_reason)
@@ -51,6 +57,8 @@ SourceCounts SourceTally::total() const {
     t.accepted += c.accepted;
     for (const auto& [reason, n] : c.rejected)
       if (n > 0) t.rejected[reason] += n;
+    for (const auto& [reason, n] : c.not_played)
+      if (n > 0) t.not_played[reason == kNotPlayedYet ? kNotPlayedNoFinalCount : reason] += n;
   }
   return t;
 }
@@ -60,6 +68,11 @@ std::string describeSource(const SourceCounts& c, std::size_t runs) {
   for (const auto& [reason, n] : c.rejected) reasons += (reasons.empty() ? "" : ", ") + reason + " " + std::to_string(n);
   std::string s = "source: received " + std::to_string(c.received) + ", accepted " + std::to_string(c.accepted) + ", rejected " +
                   std::to_string(c.rejectedTotal()) + " (" + (reasons.empty() ? "none" : reasons) + ")";
+  if (c.notPlayedTotal() > 0) {
+    std::string why;
+    for (const auto& [reason, n] : c.not_played) why += (why.empty() ? "" : ", ") + reason + " " + std::to_string(n);
+    s += "; not played " + std::to_string(c.notPlayedTotal()) + " (" + why + ")";
+  }
   if (runs > 1) s += ", over " + std::to_string(runs) + " ingest runs (summed)";
   return s;
 }

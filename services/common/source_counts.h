@@ -9,6 +9,13 @@
 // stays counted. What a killed run counted after its last heartbeat (period 0.5 s) is not known
 // and not invented. No reason is ever dropped to fit the wire bound: the remainder is summed
 // under kOtherReasons, so the total of the rejections is always exact.
+//
+// A recording's frames that a run never played are not received (neither accepted nor
+// rejected): they are counted as not played, by reason (bridges' SourceStats::not_played). While a
+// run plays, its heartbeats count the rest of the recording as kNotPlayedYet; a run that ended
+// without a final count (killed) keeps that figure of its last heartbeat, and the report says so
+// (kNotPlayedNoFinalCount). So received = accepted + rejected holds for what was received (for a
+// source of one frame per record whose rejections are of whole records, e.g. DTrack datagrams).
 #pragma once
 
 #include <cstddef>
@@ -21,11 +28,15 @@
 namespace godhand {
 
 struct SourceCounts {
-  std::uint64_t received = 0;  ///< records / datagrams that came in
+  std::uint64_t received = 0;  ///< records / datagrams that came in (of a recording: of the frames played, and the rejected ones)
   std::uint64_t accepted = 0;  ///< frames delivered
   std::map<std::string, std::uint64_t> rejected;  ///< by reason (only nonzero counts)
+  std::map<std::string, std::uint64_t> not_played;  ///< a recording's records never played, by reason (only nonzero counts)
   std::uint64_t rejectedTotal() const;
-  bool operator==(const SourceCounts& o) const { return received == o.received && accepted == o.accepted && rejected == o.rejected; }
+  std::uint64_t notPlayedTotal() const;
+  bool operator==(const SourceCounts& o) const {
+    return received == o.received && accepted == o.accepted && rejected == o.rejected && not_played == o.not_played;
+  }
 };
 
 /// The wire's bounds (idl/godhand.idl ServiceStatus.source: sequence<ReasonCount, 16>, string<64>).
@@ -33,6 +44,12 @@ constexpr std::size_t kWireReasons = 16;
 constexpr std::size_t kWireReasonChars = 64;
 /// Where the reasons beyond the wire's bound go (summed).
 constexpr const char* kOtherReasons = "other reasons";
+/// The wire's bound of not-played reasons (ServiceStatus.source.not_played: sequence<ReasonCount, 4>).
+constexpr std::size_t kWireNotPlayedReasons = 4;
+/// A playing run's rest of the recording (the ingest's heartbeats while it plays).
+constexpr const char* kNotPlayedYet = "not played yet";
+/// What the report calls kNotPlayedYet of a run whose last count is all there is.
+constexpr const char* kNotPlayedNoFinalCount = "by the run's last heartbeat, no final count (killed, or still running)";
 
 /// The reasons as they fit the wire: each name cut to at most max_chars bytes (a bounded IDL
 /// string; names that become equal when cut are summed), zero counts left out, and when more than
@@ -53,7 +70,9 @@ class SourceTally {
   void update(std::uint64_t run, const SourceCounts& counts);
   std::size_t runs() const { return runs_.size(); }
   bool any() const { return !runs_.empty(); }
-  /// Summed over the runs (each run: its newest counts).
+  /// Summed over the runs (each run: its newest counts), for the report made once the runs are
+  /// over: a run's kNotPlayedYet is kNotPlayedNoFinalCount (its final heartbeat would have said
+  /// why the rest was not played, or had nothing left).
   SourceCounts total() const;
 
  private:
@@ -61,7 +80,8 @@ class SourceTally {
 };
 
 /// "source: received N, accepted M, rejected K (reason a, reason b ...)": the report's line.
-/// "(none)" when nothing was rejected; ", over R ingest runs (summed)" when runs > 1.
+/// "(none)" when nothing was rejected; "; not played P (reason p, ...)" when frames of a recording
+/// were not played; ", over R ingest runs (summed)" when runs > 1.
 std::string describeSource(const SourceCounts& c, std::size_t runs = 1);
 
 }  // namespace godhand

@@ -4,9 +4,11 @@
 // Lock-step: publishes frame k once every cluster's HandState of frame k-1 is back, so the run
 // goes as fast as the slowest stage allows and is deterministic.
 #include <malloc.h>
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 #include <thread>
 
 #include "common/files.h"
@@ -227,13 +229,30 @@ int main(int argc, char** argv) {
       for (std::uint64_t& have = source_rejects[reason]; have < n; ++have) service.reject("source: " + reason);
   };
   // Every heartbeat from here carries the source's counts of this run (the launch report's
-  // `source`, summed there over ingest runs).
-  service.sourceCounts(run, [&source] {
+  // `source`, summed there over ingest runs). A recording's frames not played are not received:
+  // counted apart, by reason (kNotPlayedYet while it plays; a killed run's last heartbeat keeps it).
+  std::string end_reason;  // why the run stops before the end of the recording, when it knows
+  auto notPlayed = [&](const bridges::SourceStats& ss) {
+    std::map<std::string, std::uint64_t> m;
+    if (ss.not_played_beyond_limit > 0) m["beyond --frames " + std::to_string(frames)] = ss.not_played_beyond_limit;
+    const std::uint64_t rest = ss.not_played - std::min(ss.not_played, ss.not_played_beyond_limit);
+    if (rest > 0) {
+      char b[64];
+      std::snprintf(b, sizeof b, "--duration %g s reached", duration);
+      m[!end_reason.empty() ? end_reason
+        : service.stopping() ? std::string("stopped (SIGINT/SIGTERM)")
+        : duration > 0.0 && elapsed() >= duration ? std::string(b)
+                                                  : std::string(kNotPlayedYet)] = rest;
+    }
+    return m;
+  };
+  service.sourceCounts(run, [&source, &notPlayed] {
     const bridges::SourceStats ss = source->stats();
     SourceCounts c;
     c.received = ss.received;
     c.accepted = ss.frames;
     c.rejected = reasonMap(ss.by_reason);
+    c.not_played = notPlayed(ss);
     return c;
   });
   auto publishUntracked = [&] {  // a silent source: every cluster's hand untracked (held downstream)
@@ -297,6 +316,7 @@ int main(int argc, char** argv) {
       if (w == 1) return service.finish(0);
       if (w == 2) {
         ++service.deadline_misses;
+        end_reason = "lock-step deadline missed";
         return service.finish(3, "lock-step: no HandState of frame " + std::to_string(k - 1) + " from every cluster within " +
                                      std::to_string(deadline) + " s");
       }
@@ -350,6 +370,7 @@ int main(int argc, char** argv) {
     const int w = waitResolved(k);
     if (w == 2) {
       ++service.deadline_misses;
+      end_reason = "lock-step deadline missed";
       return service.finish(3, "lock-step: no HandState of the last frame " + std::to_string(k) + " within the deadline");
     }
   }
@@ -361,11 +382,13 @@ int main(int argc, char** argv) {
                  static_cast<unsigned long long>(undriven[0]), static_cast<unsigned long long>(undriven[1]));
   std::string by_reason;
   for (const auto& [reason, n] : ss.by_reason) by_reason += (by_reason.empty() ? "" : ", ") + reason + " " + std::to_string(n);
-  std::fprintf(stderr, "ingest: source %s: received %llu, accepted %llu, rejected %llu (%s), superseded %llu, silences %llu\n", source_spec.c_str(),
-               static_cast<unsigned long long>(ss.received), static_cast<unsigned long long>(ss.frames),
+  std::string not_played;
+  for (const auto& [reason, n] : notPlayed(ss)) not_played += (not_played.empty() ? "" : ", ") + reason + " " + std::to_string(n);
+  std::fprintf(stderr, "ingest: source %s: received %llu, accepted %llu, rejected %llu (%s), superseded %llu, silences %llu%s%s%s\n",
+               source_spec.c_str(), static_cast<unsigned long long>(ss.received), static_cast<unsigned long long>(ss.frames),
                static_cast<unsigned long long>(ss.rejected), by_reason.empty() ? "none" : by_reason.c_str(),
-               static_cast<unsigned long long>(superseded),
-               static_cast<unsigned long long>(silence_monitor.silences()));
+               static_cast<unsigned long long>(superseded), static_cast<unsigned long long>(silence_monitor.silences()),
+               not_played.empty() ? "" : ", not played (", not_played.c_str(), not_played.empty() ? "" : ")");
   if (recorder) {
     std::fprintf(stderr, "ingest: recorded %llu datagrams to %s%s\n", static_cast<unsigned long long>(recorder->records()), record.c_str(),
                  recorder->ok() ? "" : " (WRITE ERRORS: the file is incomplete)");

@@ -32,6 +32,8 @@
 #include "common/drill.h"
 #include "common/files.h"
 #include "common/frame_book.h"
+#include "common/latency_figures.h"
+#include "common/output_rate.h"
 #include "common/watchdog.h"
 #include "launch/report.h"
 #include "common/lab_config.h"
@@ -466,6 +468,7 @@ int main(int argc, char** argv) {
   std::fflush(stdout);
   std::map<std::string, msg::ServiceStatus> status;
   SourceTally source_tally;  // the ingest's source counts, per ingest run (summed in the report)
+  OutputRate output_rate;    // what each service wrote per second (the live line's scene figure)
   Supervisor sup;
   const Clock::time_point t_start = Clock::now();
   Watchdog watchdog(silent_after, t_start);
@@ -525,6 +528,7 @@ int main(int argc, char** argv) {
       if (noteForeign(s)) continue;  // not one of ours: neither its state nor its heartbeat counts
       const std::string name = s.service().to_string();
       status[name] = s;
+      output_rate.beat(name, s.pid(), s.time_ns(), s.samples_out());
       watchdog.beat(name, Clock::now());
       if (beats.size() < 256) beats.emplace_back(name, static_cast<pid_t>(s.pid()));
       std::uint64_t source_run = 0;
@@ -606,8 +610,7 @@ int main(int argc, char** argv) {
   // Measurements.
   RunReport rep;
   // The run's figures in bounded memory (a lab left running for a day: math/stats.h).
-  Sample latency_us;
-  std::vector<double> window_latency;  // this second's, cleared every line
+  LatencyFigures latency;  // fresh states' latency (the run's and this second's); stale states' ages apart
   Sample st_contacts, st_assembly, st_solve, st_integrate, st_ccd, st_merge, st_scene;
   double window_pen = 0;
   Sample st_total;  // compute time per frame: the stages' own times, no transport
@@ -704,10 +707,7 @@ int main(int argc, char** argv) {
     ++rep.states;
     if (snap)
       for (const ObjectMotion& o : snap->objects) world.setObjectPose(o.index, o.X);
-    if (lat_us > 0) {
-      latency_us.add(lat_us);
-      window_latency.push_back(lat_us);
-    }
+    latency.add(lat_us, stale_rx);
     if (stale_rx) ++rep.stale_states;
     if (h.held()) {  // the last result again: its figures were counted when it was new
       ++rep.held_states;
@@ -947,10 +947,7 @@ int main(int argc, char** argv) {
         f.have.resize(C, 0);
         f.states[h.hand()] = h;
         f.have[h.hand()] = 1;
-        if (lat > 0) {
-          latency_us.add(lat);
-          window_latency.push_back(lat);
-        }
+        latency.add(lat, stale_rx);
       } else {
         awaiting.push_back(Awaiting{h, lat, stale_rx, Clock::now()});
         scoreAwaiting(false);
@@ -1174,7 +1171,7 @@ int main(int argc, char** argv) {
       }
       break;
     }
-    if (quiet && window_latency.size() > 100000) window_latency.clear();
+    if (quiet && latency.window().size() > 100000) latency.clearWindow();
     if (!quiet && secondsSince(last_print) >= 1.0) {
       last_print = Clock::now();
       std::string rates;
@@ -1189,23 +1186,30 @@ int main(int argc, char** argv) {
                         watchdog.silentFor(s.first, Clock::now()));
         else if (hl == Watchdog::Health::Unknown)  // (re)starting: its last status is a former process's
           std::snprintf(b, sizeof b, "%s%s starting", rates.empty() ? "" : ", ", s.first.c_str());
-        else
+        else if (s.first == "scene") {
+          // The scene: the states it published per second (its heartbeats' samples_out), not its
+          // rate_hz, which counts the steps that applied new forces (its inputs: 0 with the resolver gone).
+          const double out = output_rate.perSecond(s.first);
+          std::snprintf(b, sizeof b, "%s%s %s states/s %s", rates.empty() ? "" : ", ", s.first.c_str(),
+                        out < 0 ? "-" : std::to_string(static_cast<long>(std::lround(out))).c_str(), s.second.state().c_str());
+        } else {
           std::snprintf(b, sizeof b, "%s%s %.0f Hz %s", rates.empty() ? "" : ", ", s.first.c_str(), s.second.rate_hz(),
                         s.second.state().c_str());
+        }
         rates += b;
       }
       char pen_text[48], lat_text[128];
       std::snprintf(pen_text, sizeof pen_text, "%.4f mm", window_pen * 1e3);
       // No fresh HandState this second: no latency to show (a 0 would read as instant).
-      if (window_latency.empty())
+      if (latency.window().empty())
         std::snprintf(lat_text, sizeof lat_text, "latency - (no fresh hand state this second)");
-      else
-        std::snprintf(lat_text, sizeof lat_text, "latency (tracker sample -> hand state) median %.0f us p99 %.0f us", percentile(window_latency, 0.5),
-                      percentile(window_latency, 0.99));
+      else  // (fresh states only: a stale state's age is no latency)
+        std::snprintf(lat_text, sizeof lat_text, "latency (tracker sample -> hand state) median %.0f us p99 %.0f us",
+                      percentile(latency.window(), 0.5), percentile(latency.window(), 0.99));
       std::printf("launch: t %5.1f s | %s | %s | penetration max %s | hand states %ld (stale %ld)\n", replayS() < 0 ? 0.0 : replayS(),
                   rates.c_str(), lat_text, scene_down ? "not scored (scene down)" : pen_text, rep.states, rep.stale_states);
       std::fflush(stdout);
-      window_latency.clear();
+      latency.clearWindow();
       window_pen = 0;
     }
   }
@@ -1339,10 +1343,14 @@ int main(int argc, char** argv) {
   rep.replay_span_s = std::chrono::duration<double>(t_last_state - t_first_state).count();
   // Frames per second from counts: fresh frames (every cluster) over first to last fresh state.
   rep.frames_per_s = rep.frames_complete > 1 && rep.replay_span_s > 0 ? static_cast<double>(rep.frames_complete - 1) / rep.replay_span_s : 0.0;
-  rep.latency_median_us = percentile(latency_us.values(), 0.5);
-  rep.latency_p99_us = percentile(latency_us.values(), 0.99);
-  rep.latency_max_us = latency_us.max();
-  rep.latency_samples = latency_us.count();
+  rep.latency_median_us = percentile(latency.latency().values(), 0.5);
+  rep.latency_p99_us = percentile(latency.latency().values(), 0.99);
+  rep.latency_max_us = latency.latency().max();
+  rep.latency_samples = latency.latency().count();
+  rep.stale_age_median_us = percentile(latency.staleAges().values(), 0.5);
+  rep.stale_age_p99_us = percentile(latency.staleAges().values(), 0.99);
+  rep.stale_age_max_us = latency.staleAges().max();
+  rep.stale_age_samples = latency.staleAges().count();
   // step_us as godhand-bench means it: the compute time of a frame (the stages' own times, every
   // hand, the scene), without the transport; the end-to-end figure is latency_us.
   rep.step_median_us = percentile(st_total.values(), 0.5);

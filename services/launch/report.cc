@@ -18,9 +18,15 @@ nlohmann::json orNull(double s) { return s < 0 ? nlohmann::json(nullptr) : nlohm
 }  // namespace
 
 nlohmann::json sourceJson(const SourceCounts& c, std::size_t runs) {
-  nlohmann::json rejected = nlohmann::json::object();
+  nlohmann::json rejected = nlohmann::json::object(), not_played = nlohmann::json::object();
   for (const auto& [reason, n] : c.rejected) rejected[reason] = n;
-  return {{"received", c.received}, {"accepted", c.accepted}, {"rejected", rejected}, {"rejected_total", c.rejectedTotal()},
+  for (const auto& [reason, n] : c.not_played) not_played[reason] = n;
+  return {{"received", c.received},
+          {"accepted", c.accepted},
+          {"rejected", rejected},
+          {"rejected_total", c.rejectedTotal()},
+          {"not_played", not_played},
+          {"not_played_total", c.notPlayedTotal()},
           {"ingest_runs", runs}};
 }
 
@@ -53,12 +59,18 @@ void printSummary(const RunReport& r) {
   if (r.old_unmarked > 0)
     std::printf("  WARNING: %ld hand states arrived older than %.2f s without the stale flag (counted stale)\n", r.old_unmarked,
                 r.stale_after_s + 0.1);
-  std::printf("  end-to-end latency (tracker sample -> HandState here): median %.0f us, p99 %.0f us, max %.0f us; %.1f fresh frames/s\n",
-              r.latency_median_us, r.latency_p99_us, r.latency_max_us, r.frames_per_s);
+  std::printf("  end-to-end latency of the fresh hand states (tracker sample -> HandState here): median %.0f us, p99 %.0f us, max %.0f us "
+              "over %llu states; %.1f fresh frames/s\n",
+              r.latency_median_us, r.latency_p99_us, r.latency_max_us, static_cast<unsigned long long>(r.latency_samples), r.frames_per_s);
+  if (r.stale_age_samples > 0)
+    std::printf("  age of the stale hand states (not a latency, not in the figures above): median %.0f us, p99 %.0f us, max %.0f us "
+                "over %llu states\n",
+                r.stale_age_median_us, r.stale_age_p99_us, r.stale_age_max_us, static_cast<unsigned long long>(r.stale_age_samples));
   if (!r.services.empty())
     std::printf("  per service: its last frame; source->output = tracker sample to the service's output, median "
-                "(the scene steps on its own clock, live: up to a frame more); samples in / out; inputs rejected; inputs "
-                "late for their frame; lock-step deadlines missed\n");
+                "(the scene steps on its own clock, live: up to a frame more); samples in / out (the scene's out: the states it "
+                "published, every step with or without new forces); inputs rejected; inputs late for their frame; lock-step "
+                "deadlines missed\n");
   for (const auto& [name, s] : r.services)
     std::printf("  %-14s frame %llu, source->output %.0f us, in %llu, out %llu, rejected %llu, late %llu, deadline misses %llu, state %s, %s\n",
                 name.c_str(), static_cast<unsigned long long>(s.frame), s.latency_median_us,
@@ -180,6 +192,9 @@ nlohmann::json reportJson(const RunReport& r) {
   j["hz_median"] = r.step_median_us > 0 ? 1e6 / r.step_median_us : 0.0;
   j["held_states"] = r.held_states;
   j["latency_us"] = {{"median", r.latency_median_us}, {"p99", r.latency_p99_us}, {"max", r.latency_max_us}, {"samples", r.latency_samples}};
+  j["stale_state_age_us"] = {{"median", r.stale_age_median_us}, {"p99", r.stale_age_p99_us}, {"max", r.stale_age_max_us},
+                             {"samples", r.stale_age_samples}};
+  j["stale_after_s"] = r.stale_after_s;
   j["run_s"] = r.run_s;
   j["frames_per_s"] = r.frames_per_s;
   j["stages_us"] = r.stages_us;

@@ -64,8 +64,12 @@ struct RunReport {
   double stale_after_s = 0;
 
   // Latency and compute.
+  /// Fresh states only (common/latency_figures.h): a stale state's age is not a latency.
   double latency_median_us = 0, latency_p99_us = 0, latency_max_us = 0;
   std::uint64_t latency_samples = 0;
+  /// The stale states' ages (tracker sample to arrival here), apart; samples: those with a measured age.
+  double stale_age_median_us = 0, stale_age_p99_us = 0, stale_age_max_us = 0;
+  std::uint64_t stale_age_samples = 0;
   double step_median_us = 0, step_p99_us = 0, step_max_us = 0;
   std::map<std::string, double> stages_us;
 
@@ -132,7 +136,7 @@ struct RunReport {
 void printSummary(const RunReport& r);
 nlohmann::json reportJson(const RunReport& r);
 /// The report's `source` block: {received, accepted, rejected: {REASON: n}, rejected_total,
-/// ingest_runs (the runs summed)}.
+/// not_played: {REASON: n}, not_played_total, ingest_runs (the runs summed)}.
 nlohmann::json sourceJson(const SourceCounts& c, std::size_t runs);
 
 }  // namespace godhand

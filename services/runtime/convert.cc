@@ -382,6 +382,13 @@ void toWire(std::uint64_t run, const SourceCounts& c, msg::SourceCounts* out) {
     r.count(n);
     out->rejected().push_back(r);
   }
+  out->not_played().clear();
+  for (const auto& [reason, n] : boundReasons(c.not_played, kWireNotPlayedReasons)) {
+    msg::ReasonCount r;
+    r.reason(reason);
+    r.count(n);
+    out->not_played().push_back(r);
+  }
 }
 
 SourceCounts fromWire(const msg::SourceCounts& in, std::uint64_t* run) {
@@ -391,6 +398,8 @@ SourceCounts fromWire(const msg::SourceCounts& in, std::uint64_t* run) {
   c.accepted = in.accepted();
   for (const msg::ReasonCount& r : in.rejected())
     if (r.count() > 0) c.rejected[r.reason().to_string()] += r.count();
+  for (const msg::ReasonCount& r : in.not_played())
+    if (r.count() > 0) c.not_played[r.reason().to_string()] += r.count();
   return c;
 }
 
@@ -409,7 +418,12 @@ bool plausible(const msg::ServiceStatus& s, std::string* why) {
     if (r.count() > kMaxCount) return fail(why, "a source count above 2^53");
     rejected += r.count();  // at most 16 × 2^53: no wrap
   }
-  if (src.received() > kMaxCount || src.accepted() > kMaxCount || rejected > kMaxCount)
+  std::uint64_t not_played = 0;
+  for (const msg::ReasonCount& r : src.not_played()) {
+    if (r.count() > kMaxCount) return fail(why, "a source count above 2^53");
+    not_played += r.count();  // at most 4 × 2^53: no wrap
+  }
+  if (src.received() > kMaxCount || src.accepted() > kMaxCount || rejected > kMaxCount || not_played > kMaxCount)
     return fail(why, "a source count above 2^53");
   return true;
 }

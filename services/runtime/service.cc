@@ -35,6 +35,7 @@ double recordingFrameRate(const std::string& recording) {
 
 Service::Service(std::string name, const CommonOptions& options, const Cli& cli, bool steps)
     : name_(std::move(name)), opt_(options), cli_(cli), started_(SteadyClock::now()) {
+  lineBufferedStdout();  // a line printed before a kill is in the log (godhand-launch reads it)
   installStopHandlers();
   try {
     lab_ = loadLab(opt_.lab);

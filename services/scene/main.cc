@@ -64,6 +64,14 @@ int main(int argc, char** argv) {
     cli.fail(service.sceneFile() + ": " + std::to_string(objects) + " objects; the wire carries at most " +
              std::to_string(svc::kMaxSceneObjects));
 
+  // Said before the resume wait (up to --resume-wait s) and the world's build, not after them: a
+  // scene killed meanwhile left no line at all.
+  std::fprintf(stderr, "scene: '%s' (%d objects, %lld God triangles), %.3f Hz, physics %s, %s mode\n", scene.name.c_str(),
+               objects, scene.god_triangles, service.frameRate(), no_physics ? "off" : (std::to_string(physics_hz) + " Hz").c_str(),
+               service.lockstep() ? "lock-step" : "live");
+  if (resuming)
+    std::fprintf(stderr, "scene: resuming: waiting up to %.1f s for the scene state the lab holds (godhand/scene_resume)\n", resume_wait);
+
   service.connect();
   // A restarted scene: the dynamic objects start where the lab last saw them (runtime/scene_resume.h).
   std::string resume_note;
@@ -126,10 +134,6 @@ int main(int argc, char** argv) {
   auto& forces_in = *forces_p;
   auto& state_out = *state_p;
   auto& description_out = *description_p;
-  std::fprintf(stderr, "scene: '%s' (%d objects, %lld God triangles), %.3f Hz, physics %s, %s mode\n", scene.name.c_str(),
-               objects, scene.god_triangles, service.frameRate(), no_physics ? "off" : (std::to_string(physics_hz) + " Hz").c_str(),
-               service.lockstep() ? "lock-step" : "live");
-
   if (!resume_note.empty()) std::fprintf(stderr, "scene: %s\n", resume_note.c_str());
   for (const SceneObject& o : scene.objects)  // an open or inverted mesh: what it was taken for
     if (o.surface_changed)

@@ -489,6 +489,60 @@ TEST(Sources, RawRecordingReplaysTheSameStreamWithItsFaults) {
   std::remove(cut.c_str());
 }
 
+// A replay reads its whole file when it is opened; an ingest killed (or cut by --frames) after k
+// frames received what it played: the rest is not played, neither received nor rejected (it was
+// counted received, so that received != accepted + rejected in the launch report's source block).
+TEST(Sources, AReplayCutShortReceivedWhatItPlayedTheRestIsNotPlayed) {
+  br::TrackerFrame f;
+  auto s = br::openSource(dataPath("pinch.dtrack"));  // 307 datagrams, every one good
+  for (int i = 0; i < 100; ++i) ASSERT_TRUE(s->next(&f));
+  br::SourceStats st = s->stats();
+  EXPECT_EQ(st.frames, 100u);
+  EXPECT_EQ(st.rejected, 0u);
+  EXPECT_EQ(st.received, 100u);  // was 307: the 207 never played counted as received
+  EXPECT_EQ(st.not_played, 207u);
+  EXPECT_EQ(st.not_played_beyond_limit, 0u);
+  while (s->next(&f)) {
+  }
+  st = s->stats();
+  EXPECT_EQ(st.received, 307u);  // played to the end: every record received
+  EXPECT_EQ(st.frames, 307u);
+  EXPECT_EQ(st.not_played, 0u);
+  // --frames 50: the frames after the limit are never played.
+  auto limited = br::openSource(dataPath("pinch.dtrack"), 50);
+  while (limited->next(&f)) {
+  }
+  st = limited->stats();
+  EXPECT_EQ(st.frames, 50u);
+  EXPECT_EQ(st.received, 50u);
+  EXPECT_EQ(st.not_played, 257u);
+  EXPECT_EQ(st.not_played_beyond_limit, 257u);
+  // A stream with faults (rejected datagrams are read and checked when the file is opened: the
+  // whole file's rejections count): received = accepted + rejected at any point, and received +
+  // not played = the datagrams of the file.
+  const auto dgs = sample("pinch.dtrack");
+  std::vector<std::string> stream;
+  for (size_t i = 0; i < 60; ++i) {
+    stream.push_back(dgs[i]);
+    if (i % 7 == 3) stream.push_back("garbage\r\n");
+    if (i % 11 == 5) stream.push_back(dgs[i]);  // a duplicate: stale
+  }
+  const std::string p = tmpFile("faulty.raw");
+  {
+    br::RawWriter w(p, "dtrack");
+    for (size_t i = 0; i < stream.size(); ++i) w.write(stream[i], static_cast<std::int64_t>(i) * 1000000);
+    ASSERT_TRUE(w.ok());
+  }
+  auto faulty = br::openSource(p);
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(faulty->next(&f));
+  st = faulty->stats();
+  EXPECT_EQ(st.rejected, stream.size() - 60);
+  EXPECT_EQ(st.received, st.frames + st.rejected);
+  EXPECT_EQ(st.received + st.not_played, stream.size());
+  EXPECT_EQ(st.not_played, 40u);
+  std::remove(p.c_str());
+}
+
 TEST(Sources, LiveUdpOnLoopbackNeverBlocks) {
   // A free port: bind port 0, read it, release it.
   int port = 0;
@@ -538,6 +592,7 @@ TEST(Sources, LiveUdpOnLoopbackNeverBlocks) {
   EXPECT_EQ(ids, (std::vector<std::int64_t>{75360, 75364, 75370}));
   const br::SourceStats st = src->stats();
   EXPECT_EQ(st.received, sent.size());
+  EXPECT_EQ(st.not_played, 0u);  // (a live source plays what it receives)
   EXPECT_EQ(st.frames, 3u);
   EXPECT_EQ(st.rejected, 4u);
   EXPECT_NE(st.detail.find("oversized 1"), std::string::npos) << st.detail;

@@ -20,6 +20,7 @@
 #include "pipeline/stages.h"
 #include "scene/scene_file.h"
 #include "source/recording.h"
+#include "source/tracker_source.h"
 #include "synthetic/synthetic.h"
 
 using namespace godhand;
@@ -349,6 +350,42 @@ TEST(Sources, GapsInTheTimestampsAreLeftOutOfTheRateAndSilencesReplayedWithoutHa
   EXPECT_EQ(slow.frames.size(), whole.frames.size());
   for (const bridges::TrackerFrame& f : slow.frames) EXPECT_FALSE(f.hands.empty());
   EXPECT_EQ(reacquisitionsOf(slow), 0u);
+}
+
+// What a record is differs by source; received + not played is the file's records at any point
+// of a replay: a synthetic script's records are hand samples (its frames hold up to two), and the
+// frames filled into a silence come from no record.
+TEST(Sources, NotPlayedCountsTheRecordsOfTheFramesNotPlayed) {
+  bridges::TrackerFrame f;
+  auto whole = bridges::openSource(dataPath("press_slide_lift.txt"));
+  while (whole->next(&f)) {
+  }
+  const bridges::SourceStats all = whole->stats();
+  EXPECT_EQ(all.not_played, 0u);
+  auto part = bridges::openSource(dataPath("press_slide_lift.txt"));
+  std::uint64_t hands = 0;
+  for (int i = 0; i < 100; ++i) {
+    ASSERT_TRUE(part->next(&f));
+    hands += f.hands.size();
+  }
+  const bridges::SourceStats st = part->stats();
+  EXPECT_EQ(st.received + st.not_played, all.received);
+  EXPECT_EQ(st.received, hands + st.rejected);  // the samples played, and every rejected one
+  EXPECT_GT(st.not_played, 0u);
+  // A silence of 150 frames in a Leap recording, filled with frames without hands: not records.
+  const std::string silent = writeEdited("pinch_silence_np.json", [](nlohmann::json& frames) {
+    frames.erase(frames.begin() + 100, frames.begin() + 250);
+  });
+  auto s = bridges::openSource(silent);
+  std::uint64_t played = 0, filled = 0;
+  while (played < 200 && s->next(&f)) {
+    ++played;
+    if (f.hands.empty()) ++filled;
+  }
+  ASSERT_GT(filled, 0u);
+  const bridges::SourceStats ss = s->stats();
+  EXPECT_EQ(ss.received, ss.frames - filled + ss.rejected);  // the filled frames received nothing
+  EXPECT_EQ(ss.received + ss.not_played, bridges::loadRecording(silent).frames.size() - bridges::loadRecording(silent).filled_frames);
 }
 
 TEST(Sources, SilencesThatWouldTakeMillionsOfFramesAreRefused) {

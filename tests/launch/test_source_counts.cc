@@ -65,18 +65,18 @@ TEST(SourceCounts, BoundReasonsCutsLongNamesAndSumsCollisions) {
 TEST(SourceTally, NewestHeartbeatOfARunIsItsCount) {
   SourceTally t;
   EXPECT_FALSE(t.any());
-  t.update(0, SourceCounts{5, 5, {}});  // no source: ignored
+  t.update(0, SourceCounts{5, 5, {}, {}});  // no source: ignored
   EXPECT_FALSE(t.any());
-  t.update(7, SourceCounts{10, 8, {{"parse error", 2}}});
-  t.update(7, SourceCounts{30, 25, {{"parse error", 4}, {"NaN/Inf", 1}}});
+  t.update(7, SourceCounts{10, 8, {{"parse error", 2}}, {}});
+  t.update(7, SourceCounts{30, 25, {{"parse error", 4}, {"NaN/Inf", 1}}, {}});
   EXPECT_EQ(t.runs(), 1u);
-  EXPECT_EQ(t.total(), (SourceCounts{30, 25, {{"parse error", 4}, {"NaN/Inf", 1}}}));
+  EXPECT_EQ(t.total(), (SourceCounts{30, 25, {{"parse error", 4}, {"NaN/Inf", 1}}, {}}));
 }
 
 TEST(SourceTally, RestartedIngestRunsAreSummedNotMaxed) {
   SourceTally t;
-  t.update(1, SourceCounts{100, 90, {{"parse error", 10}}});  // killed by a drill: its last heartbeat
-  t.update(2, SourceCounts{40, 35, {{"parse error", 3}, {"oversized", 2}}});  // the restarted one counts from 0
+  t.update(1, SourceCounts{100, 90, {{"parse error", 10}}, {}});  // killed by a drill: its last heartbeat
+  t.update(2, SourceCounts{40, 35, {{"parse error", 3}, {"oversized", 2}}, {}});  // the restarted one counts from 0
   EXPECT_EQ(t.runs(), 2u);
   const SourceCounts s = t.total();
   EXPECT_EQ(s.received, 140u);
@@ -85,11 +85,30 @@ TEST(SourceTally, RestartedIngestRunsAreSummedNotMaxed) {
   EXPECT_EQ(s.rejectedTotal(), 15u);
 }
 
+// A killed ingest run's unplayed rest of the recording is not received: its heartbeats count it
+// as not played yet, and the report, made once the runs are over, says that this is all the run's
+// last heartbeat had counted. A run that ended itself names its reason.
+TEST(SourceTally, NotPlayedIsNeitherReceivedNorRejectedAndAKilledRunSaysSo) {
+  SourceTally t;
+  t.update(1, SourceCounts{30, 30, {}, {{kNotPlayedYet, 141}}});  // killed at frame ~40: its last heartbeat at 30
+  t.update(2, SourceCounts{171, 171, {}, {}});                    // the restarted run played the whole recording
+  t.update(3, SourceCounts{52, 50, {{"parse error", 2}}, {{"beyond --frames 50", 121}}});
+  const SourceCounts s = t.total();
+  EXPECT_EQ(s.received, 253u);
+  EXPECT_EQ(s.received, s.accepted + s.rejectedTotal());
+  EXPECT_EQ(s.notPlayedTotal(), 262u);
+  EXPECT_EQ(s.not_played, (std::map<std::string, std::uint64_t>{{kNotPlayedNoFinalCount, 141}, {"beyond --frames 50", 121}}));
+  EXPECT_EQ(s.not_played.count(kNotPlayedYet), 0u);  // "yet" no more: the run is over
+  EXPECT_EQ(describeSource(s, 3),
+            "source: received 253, accepted 251, rejected 2 (parse error 2); not played 262 (beyond --frames 50 121, " +
+                std::string(kNotPlayedNoFinalCount) + " 141), over 3 ingest runs (summed)");
+}
+
 TEST(SourceCounts, SummaryLine) {
-  EXPECT_EQ(describeSource(SourceCounts{12, 9, {{"parse error", 2}, {"NaN/Inf", 1}}}),
+  EXPECT_EQ(describeSource(SourceCounts{12, 9, {{"parse error", 2}, {"NaN/Inf", 1}}, {}}),
             "source: received 12, accepted 9, rejected 3 (NaN/Inf 1, parse error 2)");
-  EXPECT_EQ(describeSource(SourceCounts{4, 4, {}}), "source: received 4, accepted 4, rejected 0 (none)");
-  EXPECT_EQ(describeSource(SourceCounts{4, 3, {{"oversized", 1}}}, 2),
+  EXPECT_EQ(describeSource(SourceCounts{4, 4, {}, {}}), "source: received 4, accepted 4, rejected 0 (none)");
+  EXPECT_EQ(describeSource(SourceCounts{4, 3, {{"oversized", 1}}, {}}, 2),
             "source: received 4, accepted 3, rejected 1 (oversized 1), over 2 ingest runs (summed)");
 }
 

@@ -324,6 +324,20 @@ def case_freeze(service, recording, restart):
         check(len(dead_lines) >= 1, f"live lines showed {service} DEAD or DOWN ({len(dead_lines)} lines)")
         check(not [l for l in frozen if re.search(rf"{prog} \d+ Hz running", l)],
               f"no live line past the watchdog's limit in the freeze showed {service} running ({len(frozen)} lines)")
+        if service == "resolver":
+            # The scene steps on its own clock and publishes a state every step, forces or not: its
+            # figure is the states it published (it showed the forces it took: 0 Hz).
+            scene_rates = [int(m.group(1)) for l in frozen for m in [re.search(r"scene (\d+) states/s", l)] if m]
+            check(scene_rates and max(scene_rates) > 0,
+                  f"live lines in the freeze showed the scene's states per second, not the forces it took ({scene_rates})")
+    # A stale state's age is not a latency: every state in the latency figures was fresh, i.e. at
+    # most the stale limit old (the freeze's late states had made the p99 of their second).
+    lat, stale_age = j.get("latency_us", {}), j.get("stale_state_age_us", {})
+    print(f"latency_us {lat}, stale_state_age_us {stale_age}, stale_states {j.get('stale_states')}", flush=True)
+    check(j.get("stale_after_s") is not None and lat.get("samples", 0) > 0 and lat.get("max", 1e12) <= j["stale_after_s"] * 1e6,
+          f"latency max {lat.get('max')} us <= the stale limit {j.get('stale_after_s')} s: stale states are not in it")
+    check(stale_age.get("samples", 0) <= j.get("stale_states", 0),
+          f"the stale states' ages reported apart ({stale_age.get('samples')} of {j.get('stale_states')} stale states)")
     check(j.get("old_unmarked_states", 1) == 0, f"no state older than the stale limit arrived unmarked ({j.get('old_unmarked_states')})")
     d = j.get("delivery", {})
     lost = sum(c["lost"] + c["stale"] for c in d.values())
@@ -420,18 +434,34 @@ def case_drills(recording):
     check(rs.get("scene", {}).get("scene_back_s") is not None, f"the restarted scene's first state seen ({rs.get('scene')})")
     check(ds.get("resolver", {}).get("killed_s") is not None and ds["resolver"]["killed_s"] >= 1.0, "resolver killed >= 1 s into the replay")
     check(j.get("ingest_runs") == 2, f"the restarted ingest replayed again: 2 ingest runs ({j.get('ingest_runs')})")
-    # The source's counts are summed over the ingest runs: the restarted run read the whole
+    # The source's counts are summed over the ingest runs: the restarted run played the whole
     # recording, the killed one adds what its last heartbeat had counted (0 when it had sent none).
+    # The killed run's unplayed rest is not received: it is not played (it was counted received,
+    # neither accepted nor rejected).
     src = j.get("source") or {}
     print("report source block:", src, flush=True)
     m = re.search(r"source \S+ \((\d+) frames at", r.stdout)
     n = int(m.group(1)) if m else None
     check(n is not None and src.get("ingest_runs") in (1, 2) and src.get("accepted", 0) >= n,
           f"source counts summed over the ingest runs: accepted {src.get('accepted')} >= the restarted run's {n} ({src})")
-    check(n is not None and src.get("received") == src.get("ingest_runs", 0) * n,
-          f"each run read the whole recording: received {src.get('received')} == {src.get('ingest_runs')} x {n}")
+    check(src.get("received") is not None and src.get("received") == src.get("accepted", -1) + src.get("rejected_total", -1),
+          f"received {src.get('received')} == accepted {src.get('accepted')} + rejected {src.get('rejected_total')}")
+    check(n is not None and src.get("received", 0) + src.get("not_played_total", 0) == src.get("ingest_runs", 0) * n,
+          f"each run's recording received or not played: {src.get('received')} + {src.get('not_played_total')} == "
+          f"{src.get('ingest_runs')} x {n}")
     if src.get("ingest_runs") == 2:
         check("over 2 ingest runs (summed)" in r.stdout, "the summary says the source counts are summed over 2 ingest runs")
+        killed = (src.get("not_played") or {}).get("by the run's last heartbeat, no final count (killed, or still running)", 0)
+        check(n is not None and 0 < killed < n and killed == src.get("not_played_total"),
+              f"the killed run's rest of the {n} frames is not played, saying why ({src.get('not_played')})")
+        check(re.search(r"^  source: received \d+, accepted \d+, rejected \d+ \(none\); not played \d+ \(", r.stdout, re.M)
+              is not None, "the summary's source line says what was not played")
+    # The restarted scene said it was starting before its resume wait (a scene killed in that wait
+    # had left no line at all).
+    scene_log = open(os.path.join(TMP, "logs", "scene.log"), errors="replace").read() if os.path.exists(
+        os.path.join(TMP, "logs", "scene.log")) else ""
+    check(re.search(r"scene: resuming: waiting up to [\d.]+ s .*\n(.*\n)*scene: (not )?resumed", scene_log) is not None,
+          "the restarted scene's log: its start and resume-wait lines before the wait's outcome")
     # (A time, "-1.00 s"; not a figure: an excess lag median of -1.00 mm is a measurement.)
     check(re.search(r"-1\.00 s\b", r.stdout) is None, "no unset time printed as -1.00 s")
     check(j.get("shm_segments_left", -1) == 0 and j.get("shm_segments_removed", 0) >= 1,

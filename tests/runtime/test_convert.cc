@@ -176,10 +176,27 @@ TEST(Convert, SourceCountsRoundTripWithinTheWireBounds) {
   EXPECT_EQ(back.rejected.count(kOtherReasons), 1u);
   for (const auto& [reason, n] : back.rejected) EXPECT_LE(reason.size(), kWireReasonChars);
 
-  SourceCounts small{12, 9, {{"parse error", 2}, {"NaN/Inf", 1}}};
+  SourceCounts small{12, 9, {{"parse error", 2}, {"NaN/Inf", 1}}, {}};
   svc::toWire(7, small, &w);
   EXPECT_EQ(svc::fromWire(w, &run), small);  // within the bounds: exact
   EXPECT_EQ(run, 7u);
+
+  // Not played, by reason (at most kWireNotPlayedReasons on the wire; the total kept).
+  SourceCounts cut{40, 40, {}, {{kNotPlayedYet, 131}, {"beyond --frames 171", 3}}};
+  svc::toWire(8, cut, &w);
+  EXPECT_EQ(svc::fromWire(w, &run), cut);
+  for (int i = 0; i < 6; ++i) cut.not_played["reason " + std::to_string(i)] = 1;
+  svc::toWire(8, cut, &w);
+  EXPECT_EQ(w.not_played().size(), kWireNotPlayedReasons);
+  EXPECT_EQ(svc::fromWire(w, &run).notPlayedTotal(), cut.notPlayedTotal());
+  msg::ServiceStatus hostile;
+  msg::ReasonCount huge;
+  huge.reason("not played yet");
+  huge.count(std::uint64_t{1} << 60);
+  hostile.source().not_played().push_back(huge);
+  std::string why;
+  EXPECT_FALSE(svc::plausible(hostile, &why));
+  EXPECT_NE(why.find("2^53"), std::string::npos) << why;
 }
 
 TEST(Convert, ForcesAndSceneRoundTrip) {
