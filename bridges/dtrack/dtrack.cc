@@ -417,13 +417,17 @@ bool Decoder::feed(std::string_view bytes, std::int64_t arrival_us, leap::Tracke
   }
   if (have_last_ && d.frame <= last_frame_) {
     if (last_frame_ - d.frame > restart_window) {
+      // A tracker restart: its frame counter starts again, its ts is still the time of day (the
+      // day offset goes on; the next ts is not compared with one from before the restart).
       ++restarts_;
       last_ts_ = -1.0;
-      day_offset_us_ = 0;
     } else if (arrival_us - last_accept_arrival_us_ >= refollow_after_us) {
-      ++refollows_;  // everything behind the book for a while: the book was wrong, follow the stream
-      last_ts_ = -1.0;
-      day_offset_us_ = 0;
+      // Everything behind the book for a while: the book was wrong (the datagram that put it ahead,
+      // e.g. a spoofed one, was the last accepted), follow the stream with the day as it was before
+      // that datagram (its ts may have read as a midnight; after one the offset went back a day).
+      ++refollows_;
+      last_ts_ = ts_before_last_;
+      day_offset_us_ = day_offset_before_last_;
     } else {
       reject(Reject::kStale, "fr " + std::to_string(d.frame) + " after fr " + std::to_string(last_frame_));
       return false;
@@ -438,6 +442,8 @@ bool Decoder::feed(std::string_view bytes, std::int64_t arrival_us, leap::Tracke
   if (d.has_ts2) {
     frame->timestamp_us = d.ts2_us;
   } else if (d.has_ts) {
+    ts_before_last_ = last_ts_;
+    day_offset_before_last_ = day_offset_us_;
     if (last_ts_ >= 0.0 && d.ts < last_ts_ - 43200.0) day_offset_us_ += 86400LL * 1000000LL;  // midnight
     last_ts_ = d.ts;
     frame->timestamp_us = day_offset_us_ + static_cast<std::int64_t>(std::llround(d.ts * 1e6));

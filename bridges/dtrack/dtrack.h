@@ -182,6 +182,8 @@ class Decoder {
   unsigned seen_lines_ = 0;  ///< union of the line kinds of accepted datagrams
   double last_ts_ = -1.0;
   std::int64_t day_offset_us_ = 0;  ///< ts wraps at midnight
+  double ts_before_last_ = -1.0;    ///< last_ts_ and day_offset_us_ before the last accepted datagram
+  std::int64_t day_offset_before_last_ = 0;
   std::string last_detail_;
   void reject(Reject r, const std::string& detail);
 };

@@ -36,6 +36,16 @@ std::uint64_t Delivery::highest(std::uint64_t run) const {
   return it == highest_.end() ? 0 : it->second;
 }
 
+std::map<std::uint64_t, std::uint64_t> Delivery::expected(std::int64_t replay_frames, bool last_run_cut_short) const {
+  std::map<std::uint64_t, std::uint64_t> e;
+  for (size_t i = 0; i < runs_.size(); ++i) {
+    const bool to_the_end = i + 1 == runs_.size() && replay_frames >= 0 && !last_run_cut_short;
+    e[runs_[i]] = to_the_end ? static_cast<std::uint64_t>(replay_frames) : highest(runs_[i]);
+  }
+  if (runs_.empty() && replay_frames > 0) e[0] = static_cast<std::uint64_t>(replay_frames);
+  return e;
+}
+
 DeliveryCounts Delivery::counts(size_t hand, const std::map<std::uint64_t, std::uint64_t>& expected) const {
   DeliveryCounts c;
   if (hand >= fresh_.size()) return c;

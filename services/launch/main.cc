@@ -233,7 +233,7 @@ int main(int argc, char** argv) {
   cli.flag("--lockstep", &lockstep, "lock-step: deterministic, every stage waits for each frame's inputs");
   cli.option("--recording", &recording, "FILE", "tracker recording (default: the lab's)");
   cli.option("--source", &source_uri, "URI", "tracker source for the ingest (godhand-ingest --source), instead of the lab's recording");
-  cli.option("--duration", &duration, "S", "passed to the ingest: a live source runs S seconds (0: the ingest's default)");
+  cli.option("--duration", &duration, "S", "passed to the ingest: it stops after S seconds, a recording too (then the frames expected are those it published; 0: the ingest's default)");
   double live_rate = 0.0;
   cli.option("--frame-rate", &live_rate, "HZ", "the source's frame rate (default: the recording's; a live source: the lab recording's)");
   cli.option("--scene", &scene_file, "FILE", "scene file (default: the lab's)");
@@ -1317,17 +1317,11 @@ int main(int argc, char** argv) {
   rep.physics_hz = no_physics ? 0 : physics_hz;
   rep.stale_after_s = stale_after;
   rep.silent_after_s = silent_after;
-  // Frames expected: the replay's frames for the last ingest run (it went to the end), and for a
-  // run cut short by a kill the frames it published; a live source: the frames published.
-  std::map<std::uint64_t, std::uint64_t> expected;
+  // Frames expected (Delivery::expected): the replay's frames for the last ingest run, unless
+  // --duration stopped the ingest on purpose; a run cut short, and a live source: the frames published.
   commitBlind(true);  // (held windows at the end: no service died or froze since they closed)
-  const std::vector<std::uint64_t>& runs = delivery.runs();
-  for (size_t i = 0; i < runs.size(); ++i) {
-    const bool last = i + 1 == runs.size();
-    expected[runs[i]] = last && n_frames >= 0 ? static_cast<std::uint64_t>(n_frames) : delivery.highest(runs[i]);
-  }
-  if (runs.empty() && n_frames > 0) expected[0] = static_cast<std::uint64_t>(n_frames);  // nothing came at all: all lost
-  rep.ingest_runs = runs.size();
+  const std::map<std::uint64_t, std::uint64_t> expected = delivery.expected(n_frames, duration > 0);
+  rep.ingest_runs = delivery.runs().size();
   rep.have_source = source_tally.any();
   rep.source = source_tally.total();
   rep.source_runs = source_tally.runs();

@@ -85,6 +85,19 @@ def children(pid):
     return out
 
 
+def live_time(line):
+    """The replay time (s) of one of the launcher's per-second lines, None for any other line."""
+    m = re.match(r"launch: t +([\d.]+) s \|", line)
+    return float(m.group(1)) if m else None
+
+
+def live_latency(line):
+    """(median, p99) in us of a per-second line's end-to-end latency, None when it has none (no
+    fresh state that second)."""
+    m = re.search(r"\| latency[^|]*? median (\d+) us p99 (\d+) us", line)
+    return (int(m.group(1)), int(m.group(2))) if m else None
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--bin-dir", default=os.path.join(ROOT, "build", "bin"))
@@ -108,20 +121,20 @@ def main():
                "--log-dir", os.path.join(tmp, "logs"), "--start-timeout", "120"]
         print(f"soak: {a.clusters} clusters, {a.minutes:g} min ({n} frames), $ {' '.join(cmd)}", flush=True)
         p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1)
-        t0, rss, lat, last_sample = None, [], [], 0.0
+        rss, lat, last_sample, lines_seen = [], [], -10.0, 0
         for line in p.stdout:
-            m = re.match(r"launch: t +([\d.]+) s \|.*latency median (\d+) us p99 (\d+) us", line)
-            if m:
-                t = float(m.group(1))
-                if t > 0:
-                    t0 = t0 or time.time()
-                    lat.append((t, int(m.group(2)), int(m.group(3))))
-                    if t - last_sample >= 10:
-                        last_sample = t
-                        rss.append((t, children(p.pid)))
-                        print(f"soak: t {t:6.0f} s rss(kB) {rss[-1][1]} latency median {m.group(2)} us", flush=True)
-            elif not line.startswith("launch: t "):
+            t = live_time(line)
+            if t is None:
                 print(line, end="", flush=True)
+                continue
+            lines_seen += 1
+            m = live_latency(line)
+            if m and t > 0:
+                lat.append((t, m[0], m[1]))
+            if t > 0 and t - last_sample >= 10:
+                last_sample = t
+                rss.append((t, children(p.pid)))
+                print(f"soak: t {t:6.0f} s rss(kB) {rss[-1][1]} latency median {m[0] if m else 'none'} us", flush=True)
         p.wait(timeout=120)
         j = json.load(open(report)) if os.path.exists(report) else {}
         end = lat[-1][0] if lat else 0
@@ -141,10 +154,18 @@ def main():
             for name in sorted(rss[-1][1]):
                 if name in a0:
                     res["rss_kb"][name] = {"start": a0[name], "end": rss[-1][1][name], "growth": rss[-1][1][name] - a0[name]}
+        res["per_second_lines"] = lines_seen
+        res["latency_samples"] = len(lat)
+        res["rss_samples"] = len(rss)
         print(json.dumps(res, indent=2))
         if a.json:
             json.dump(res, open(a.json, "w"), indent=2)
-        sys.exit(0 if p.returncode == 0 else 1)
+        # A soak that sampled nothing measured nothing: say so and fail (the line's format changed
+        # once and the soak went on printing nulls).
+        missing = [what for what, n in (("per-second lines", lines_seen), ("latency", len(lat)), ("RSS", len(rss))) if n == 0]
+        if missing:
+            print(f"soak.py: no {', no '.join(missing)} sampled from the launcher's output", file=sys.stderr)
+        sys.exit(0 if p.returncode == 0 and not missing else 1)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

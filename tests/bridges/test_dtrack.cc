@@ -238,6 +238,83 @@ TEST(DtrackDecoder, OneDatagramFarAheadStopsTrackingForAQuarterSecondAtMost) {
   EXPECT_NE(dec.summary().find("followed again"), std::string::npos) << dec.summary();
 }
 
+// A stream that passed midnight (ts 86399.9 … then 0.0 …: a day added to the times) keeps its day
+// when it is followed again after a datagram far ahead, and across a tracker restart (the ts is the
+// time of day either way). Both used to set the day back to 0: the hands' times jumped back 24 h.
+TEST(DtrackDecoder, TheDayGoesOnAfterAFollowAgainAndARestart) {
+  const auto dgs = sample("pinch.dtrack");
+  ASSERT_GT(dgs.size(), 60u);
+  auto withFrameAndTs = [](std::string d, std::uint64_t frame, double ts) {
+    d.replace(0, d.find("\r\n"), "fr " + std::to_string(frame));
+    const size_t at = d.find("\r\nts ") + 2;
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "ts %.6f", ts);
+    d.replace(at, d.find("\r\n", at) - at, buf);
+    return d;
+  };
+  constexpr std::int64_t kDay = 86400LL * 1000000LL;
+  Decoder dec;
+  br::TrackerFrame f;
+  std::int64_t t = 0;
+  std::uint64_t frame = 5000;
+  long cs = 8639995;  // ts in hundredths: 50 ms before midnight, 100 Hz
+  auto tsNow = [&] { return static_cast<double>(cs % 8640000) / 100.0; };
+  std::int64_t last_time = 0;
+  auto feed = [&](size_t i, bool expect_accepted) {
+    const bool ok = dec.feed(withFrameAndTs(dgs[i], frame, tsNow()), t, &f);
+    EXPECT_EQ(ok, expect_accepted) << i << ": " << dec.lastDetail();
+    if (ok) {
+      EXPECT_GT(f.timestamp_us, last_time) << i;  // never back
+      EXPECT_NEAR(static_cast<double>(f.timestamp_us), (86399.95 + 0.01 * static_cast<double>(i)) * 1e6, 1.0) << i;
+      last_time = f.timestamp_us;
+    }
+    ++frame;
+    t += 10000;
+    ++cs;
+  };
+  for (size_t i = 0; i < 20; ++i) feed(i, true);  // across midnight at i = 5
+  ASSERT_GE(last_time, kDay);
+  // A spoofed datagram far ahead …
+  ASSERT_TRUE(dec.feed(withFrameAndTs(dgs[20], frame + 900, tsNow()), t, &f));
+  t += 10000;
+  // … the real ones behind it are stale for a quarter second, then followed again, the same day.
+  for (size_t i = 20; i < 46; ++i) feed(i, i >= 44);
+  EXPECT_EQ(dec.refollows(), 1u);
+  // A tracker restart (its frame counter starts again): the day goes on.
+  frame = 1;
+  for (size_t i = 46; i < 50; ++i) feed(i, true);
+  EXPECT_EQ(dec.restarts(), 1u);
+}
+
+// A spoofed datagram far ahead whose ts reads as a midnight (1 s past it, at midday) adds a day;
+// following the stream again takes that day back.
+TEST(DtrackDecoder, AFalseMidnightIsUndoneWhenTheStreamIsFollowedAgain) {
+  const auto dgs = sample("pinch.dtrack");
+  ASSERT_GT(dgs.size(), 50u);
+  auto withFrameAndTs = [](std::string d, std::uint64_t frame, double ts) {
+    d.replace(0, d.find("\r\n"), "fr " + std::to_string(frame));
+    const size_t at = d.find("\r\nts ") + 2;
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "ts %.6f", ts);
+    d.replace(at, d.find("\r\n", at) - at, buf);
+    return d;
+  };
+  Decoder dec;
+  br::TrackerFrame f;
+  std::int64_t t = 0;
+  for (int i = 0; i < 10; ++i, t += 10000)
+    ASSERT_TRUE(dec.feed(withFrameAndTs(dgs[static_cast<size_t>(i)], 100 + static_cast<std::uint64_t>(i), 50000.0 + 0.01 * i), t, &f));
+  ASSERT_TRUE(dec.feed(withFrameAndTs(dgs[10], 1000, 1.0), t, &f));
+  EXPECT_EQ(f.timestamp_us, (86400LL + 1LL) * 1000000LL);  // read as the next day (nothing tells it apart yet)
+  t += 10000;
+  int accepted_at = -1;
+  for (int i = 10; i < 40 && accepted_at < 0; ++i, t += 10000)
+    if (dec.feed(withFrameAndTs(dgs[static_cast<size_t>(i)], 100 + static_cast<std::uint64_t>(i), 50000.0 + 0.01 * i), t, &f)) accepted_at = i;
+  ASSERT_GE(accepted_at, 0);
+  EXPECT_EQ(dec.refollows(), 1u);
+  EXPECT_NEAR(static_cast<double>(f.timestamp_us), (50000.0 + 0.01 * accepted_at) * 1e6, 1.0);  // the same day again
+}
+
 TEST(DtrackDecoder, QualityMinusOneIsNotTracked) {
   std::string g = sample("pinch.dtrack")[0];
   g.replace(g.find("[1 1.000 1 5]"), 13, "[1 -1.000 1 5]");

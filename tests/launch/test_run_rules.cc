@@ -197,6 +197,28 @@ TEST(Delivery, RunsOfARestartedIngestCountApart) {
   EXPECT_EQ(c.lost, 10u);
 }
 
+// Frames expected of each run: the last one was to play the whole replay, unless it was stopped
+// on purpose (the ingest's --duration: `godhand-launch --recording pinch.json --duration 1` counted
+// the 192 frames never played as lost and failed --check); runs cut short by a kill, and a live
+// source, expect what was published; nothing seen at all expects the whole replay (all lost).
+TEST(Delivery, FramesExpectedOfEachRun) {
+  Delivery d(1);
+  for (std::uint64_t k = 1; k <= 4; ++k) d.published(1, k);
+  for (std::uint64_t k = 1; k <= 3; ++k) d.add(0, 1, k, false);  // frame 4's state lost
+  using E = std::map<std::uint64_t, std::uint64_t>;
+  EXPECT_EQ(d.expected(10, false), (E{{1, 10}}));  // to the end: 6 never published are lost
+  EXPECT_EQ(d.counts(0, d.expected(10, false)).lost, 7u);
+  EXPECT_EQ(d.expected(10, true), (E{{1, 4}}));  // --duration: what it published
+  EXPECT_EQ(d.counts(0, d.expected(10, true)).lost, 1u);
+  EXPECT_EQ(d.expected(-1, false), (E{{1, 4}}));  // live
+  d.published(2, 2);  // the ingest restarted (run 2): run 1 was cut short by a kill
+  EXPECT_EQ(d.expected(10, false), (E{{1, 4}, {2, 10}}));
+  EXPECT_EQ(d.expected(10, true), (E{{1, 4}, {2, 2}}));
+  EXPECT_EQ(Delivery(1).expected(10, false), (E{{0, 10}}));
+  EXPECT_EQ(Delivery(1).expected(10, true), (E{{0, 10}}));  // nothing came: all lost, whatever the duration
+  EXPECT_EQ(Delivery(1).expected(-1, false), E{});
+}
+
 // The launcher's own pause (SIGSTOP 2.5 s): frames published meanwhile were superseded in its
 // keep-newest readers. Those without a state are not observed, not lost; those whose state came
 // count as usual; windows may overlap; frames beyond the expected ones and other runs' windows
