@@ -418,9 +418,8 @@ bool Decoder::feed(std::string_view bytes, std::int64_t arrival_us, leap::Tracke
   if (have_last_ && d.frame <= last_frame_) {
     if (last_frame_ - d.frame > restart_window) {
       // A tracker restart: its frame counter starts again, its ts is still the time of day (the
-      // day offset goes on; the next ts is not compared with one from before the restart).
+      // day goes on, and a restart across midnight is one: the ts is compared as usual below).
       ++restarts_;
-      last_ts_ = -1.0;
     } else if (arrival_us - last_accept_arrival_us_ >= refollow_after_us) {
       // Everything behind the book for a while: the book was wrong (the datagram that put it ahead,
       // e.g. a spoofed one, was the last accepted), follow the stream with the day as it was before
@@ -442,9 +441,17 @@ bool Decoder::feed(std::string_view bytes, std::int64_t arrival_us, leap::Tracke
   if (d.has_ts2) {
     frame->timestamp_us = d.ts2_us;
   } else if (d.has_ts) {
-    ts_before_last_ = last_ts_;
-    day_offset_before_last_ = day_offset_us_;
-    if (last_ts_ >= 0.0 && d.ts < last_ts_ - 43200.0) day_offset_us_ += 86400LL * 1000000LL;  // midnight
+    // Midnight: the time of day went back by more than half a day. A midnight the next datagram
+    // does not confirm (its ts half a day or more ahead of it: the one before was an outlier, e.g.
+    // a spoofed datagram, however it was accepted) is taken back.
+    const double ts_before = last_ts_;
+    const std::int64_t day_before = day_offset_us_;
+    if (last_ts_ >= 0.0 && d.ts > last_ts_ + 43200.0 && day_offset_us_ != day_offset_before_last_)
+      day_offset_us_ = day_offset_before_last_;
+    else if (last_ts_ >= 0.0 && d.ts < last_ts_ - 43200.0)
+      day_offset_us_ += 86400LL * 1000000LL;
+    ts_before_last_ = ts_before;
+    day_offset_before_last_ = day_before;
     last_ts_ = d.ts;
     frame->timestamp_us = day_offset_us_ + static_cast<std::int64_t>(std::llround(d.ts * 1e6));
   } else {

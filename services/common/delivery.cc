@@ -42,7 +42,7 @@ std::map<std::uint64_t, std::uint64_t> Delivery::expected(std::int64_t replay_fr
     const bool to_the_end = i + 1 == runs_.size() && replay_frames >= 0 && !last_run_cut_short;
     e[runs_[i]] = to_the_end ? static_cast<std::uint64_t>(replay_frames) : highest(runs_[i]);
   }
-  if (runs_.empty() && replay_frames > 0) e[0] = static_cast<std::uint64_t>(replay_frames);
+  if (runs_.empty() && replay_frames > 0 && !last_run_cut_short) e[0] = static_cast<std::uint64_t>(replay_frames);
   return e;
 }
 

@@ -42,7 +42,8 @@ class Delivery {
   /// expects the replay's `replay_frames` (it was to play to the end), unless it was stopped on
   /// purpose before the end (`last_run_cut_short`: the ingest's --duration), then, like a run
   /// cut short by a kill, the frames it published; a live source (replay_frames < 0) expects
-  /// the frames published. Nothing seen at all: run 0 expects the replay's frames (all lost).
+  /// the frames published. Nothing seen at all: run 0 expects the replay's frames (all lost),
+  /// unless the run was cut short on purpose before its first frame (nothing expected).
   std::map<std::uint64_t, std::uint64_t> expected(std::int64_t replay_frames, bool last_run_cut_short) const;
   /// Counts of `hand` against `expected`: run -> frames 1..N expected of it (runs not listed
   /// expect nothing; frames beyond N are not counted).

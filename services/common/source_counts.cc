@@ -1,3 +1,4 @@
+#include <cstdio>
 #include "common/source_counts.h"
 
 #include <algorithm>
@@ -48,6 +49,31 @@ std::vector<std::pair<std::string, std::uint64_t>> boundReasons(const std::map<s
 void SourceTally::update(std::uint64_t run, const SourceCounts& counts) {
   if (run == 0) return;
   runs_[run] = counts;  // a run's newest heartbeat: its counters so far
+}
+
+namespace {
+constexpr const char* kDurationPrefix = "--duration ";
+constexpr const char* kDurationSuffix = " s reached";
+}  // namespace
+
+std::string durationReachedReason(double duration_s) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%s%g%s", kDurationPrefix, duration_s, kDurationSuffix);
+  return b;
+}
+
+bool isDurationReached(const std::string& reason) {
+  const std::string pre = kDurationPrefix, suf = kDurationSuffix;
+  return reason.size() > pre.size() + suf.size() && reason.compare(0, pre.size(), pre) == 0 &&
+         reason.compare(reason.size() - suf.size(), suf.size(), suf) == 0;
+}
+
+bool SourceTally::stoppedByDuration(std::uint64_t run) const {
+  const auto it = runs_.find(run);
+  if (it == runs_.end()) return false;
+  for (const auto& [reason, n] : it->second.not_played)
+    if (n > 0 && isDurationReached(reason)) return true;
+  return false;
 }
 
 SourceCounts SourceTally::total() const {

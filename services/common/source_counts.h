@@ -48,6 +48,10 @@ constexpr const char* kOtherReasons = "other reasons";
 constexpr std::size_t kWireNotPlayedReasons = 4;
 /// A playing run's rest of the recording (the ingest's heartbeats while it plays).
 constexpr const char* kNotPlayedYet = "not played yet";
+/// The not-played reason of a run that its --duration stopped (durationReachedReason): the one
+/// reason a launcher reads, to expect only what that run published (Delivery::expected).
+std::string durationReachedReason(double duration_s);
+bool isDurationReached(const std::string& reason);
 /// What the report calls kNotPlayedYet of a run whose last count is all there is.
 constexpr const char* kNotPlayedNoFinalCount = "by the run's last heartbeat, no final count (killed, or still running)";
 
@@ -74,6 +78,12 @@ class SourceTally {
   /// over: a run's kNotPlayedYet is kNotPlayedNoFinalCount (its final heartbeat would have said
   /// why the rest was not played, or had nothing left).
   SourceCounts total() const;
+  /// Run `run`'s newest counts say that its --duration stopped it before the end of its recording
+  /// (a not-played reason durationReachedReason): false while it plays, when killed, stopped by a
+  /// signal, or when its final heartbeat never came.
+  bool stoppedByDuration(std::uint64_t run) const;
+  /// The same of the newest run (run ids grow with the ingest's start time); false when none.
+  bool lastRunStoppedByDuration() const { return !runs_.empty() && stoppedByDuration(runs_.rbegin()->first); }
 
  private:
   std::map<std::uint64_t, SourceCounts> runs_;

@@ -237,11 +237,9 @@ int main(int argc, char** argv) {
     if (ss.not_played_beyond_limit > 0) m["beyond --frames " + std::to_string(frames)] = ss.not_played_beyond_limit;
     const std::uint64_t rest = ss.not_played - std::min(ss.not_played, ss.not_played_beyond_limit);
     if (rest > 0) {
-      char b[64];
-      std::snprintf(b, sizeof b, "--duration %g s reached", duration);
       m[!end_reason.empty() ? end_reason
         : service.stopping() ? std::string("stopped (SIGINT/SIGTERM)")
-        : duration > 0.0 && elapsed() >= duration ? std::string(b)
+        : duration > 0.0 && elapsed() >= duration ? durationReachedReason(duration)
                                                   : std::string(kNotPlayedYet)] = rest;
     }
     return m;

@@ -1163,9 +1163,12 @@ int main(int argc, char** argv) {
       run_over = true;
       recovery.replayEnded(replayS());
       if (blind.open) closeBlind(delivery.highest(blind.run));  // the replay ended inside the window: up to its highest frame
-      // Let the last states arrive (lock-step: until every frame is in, bounded).
+      // Let the last states arrive (lock-step: until every frame is in, bounded; with --duration,
+      // every frame the ingest published: it stopped before the end on purpose, or reached it).
       const Clock::time_point until = Clock::now() + std::chrono::seconds(lockstep ? 5 : 1);
-      while (Clock::now() < until && (!lockstep || n_frames < 0 || next_frame <= static_cast<std::uint64_t>(n_frames))) {
+      std::uint64_t last_frame = n_frames < 0 ? 0 : static_cast<std::uint64_t>(n_frames);
+      if (duration > 0 && !delivery.runs().empty()) last_frame = std::min(last_frame, delivery.highest(delivery.runs().back()));
+      while (Clock::now() < until && (!lockstep || n_frames < 0 || next_frame <= last_frame)) {
         dp->waitForData(Clock::now() + std::chrono::milliseconds(20));
         drain();
       }
@@ -1317,10 +1320,12 @@ int main(int argc, char** argv) {
   rep.physics_hz = no_physics ? 0 : physics_hz;
   rep.stale_after_s = stale_after;
   rep.silent_after_s = silent_after;
-  // Frames expected (Delivery::expected): the replay's frames for the last ingest run, unless
-  // --duration stopped the ingest on purpose; a run cut short, and a live source: the frames published.
+  // Frames expected (Delivery::expected): the replay's frames for the last ingest run, unless its
+  // final count says --duration stopped it (not a signal, a kill, a missing final heartbeat);
+  // a run cut short, and a live source: the frames published.
   commitBlind(true);  // (held windows at the end: no service died or froze since they closed)
-  const std::map<std::uint64_t, std::uint64_t> expected = delivery.expected(n_frames, duration > 0);
+  const bool cut_by_duration = source_tally.lastRunStoppedByDuration();
+  const std::map<std::uint64_t, std::uint64_t> expected = delivery.expected(n_frames, cut_by_duration);
   rep.ingest_runs = delivery.runs().size();
   rep.have_source = source_tally.any();
   rep.source = source_tally.total();

@@ -59,9 +59,13 @@ void printSummary(const RunReport& r) {
   if (r.old_unmarked > 0)
     std::printf("  WARNING: %ld hand states arrived older than %.2f s without the stale flag (counted stale)\n", r.old_unmarked,
                 r.stale_after_s + 0.1);
-  std::printf("  end-to-end latency of the fresh hand states (tracker sample -> HandState here): median %.0f us, p99 %.0f us, max %.0f us "
-              "over %llu states; %.1f fresh frames/s\n",
-              r.latency_median_us, r.latency_p99_us, r.latency_max_us, static_cast<unsigned long long>(r.latency_samples), r.frames_per_s);
+  if (r.latency_samples > 0)
+    std::printf("  end-to-end latency of the fresh hand states (tracker sample -> HandState here): median %.0f us, p99 %.0f us, max %.0f us "
+                "over %llu states; %.1f fresh frames/s\n",
+                r.latency_median_us, r.latency_p99_us, r.latency_max_us, static_cast<unsigned long long>(r.latency_samples), r.frames_per_s);
+  else  // (0 us would read as instant)
+    std::printf("  end-to-end latency: none measured (no fresh hand state with a tracker sample time); %.1f fresh frames/s\n",
+                r.frames_per_s);
   if (r.stale_age_samples > 0)
     std::printf("  age of the stale hand states (not a latency, not in the figures above): median %.0f us, p99 %.0f us, max %.0f us "
                 "over %llu states\n",
@@ -191,8 +195,15 @@ nlohmann::json reportJson(const RunReport& r) {
   j["step_us"] = {{"median", r.step_median_us}, {"p99", r.step_p99_us}, {"max", r.step_max_us}};
   j["hz_median"] = r.step_median_us > 0 ? 1e6 / r.step_median_us : 0.0;
   j["held_states"] = r.held_states;
-  j["latency_us"] = {{"median", r.latency_median_us}, {"p99", r.latency_p99_us}, {"max", r.latency_max_us}, {"samples", r.latency_samples}};
-  j["stale_state_age_us"] = {{"median", r.stale_age_median_us}, {"p99", r.stale_age_p99_us}, {"max", r.stale_age_max_us},
+  // Figures of no sample are null, not 0 (which would read as instant).
+  auto figure = [](double v, std::uint64_t samples) { return samples > 0 ? nlohmann::json(v) : nlohmann::json(nullptr); };
+  j["latency_us"] = {{"median", figure(r.latency_median_us, r.latency_samples)},
+                     {"p99", figure(r.latency_p99_us, r.latency_samples)},
+                     {"max", figure(r.latency_max_us, r.latency_samples)},
+                     {"samples", r.latency_samples}};
+  j["stale_state_age_us"] = {{"median", figure(r.stale_age_median_us, r.stale_age_samples)},
+                             {"p99", figure(r.stale_age_p99_us, r.stale_age_samples)},
+                             {"max", figure(r.stale_age_max_us, r.stale_age_samples)},
                              {"samples", r.stale_age_samples}};
   j["stale_after_s"] = r.stale_after_s;
   j["run_s"] = r.run_s;

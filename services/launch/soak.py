@@ -156,13 +156,13 @@ def main():
                     res["rss_kb"][name] = {"start": a0[name], "end": rss[-1][1][name], "growth": rss[-1][1][name] - a0[name]}
         res["per_second_lines"] = lines_seen
         res["latency_samples"] = len(lat)
-        res["rss_samples"] = len(rss)
+        res["rss_samples"] = len([x for x in rss if x[1]])  # a sample that found no service is none
         print(json.dumps(res, indent=2))
         if a.json:
             json.dump(res, open(a.json, "w"), indent=2)
         # A soak that sampled nothing measured nothing: say so and fail (the line's format changed
         # once and the soak went on printing nulls).
-        missing = [what for what, n in (("per-second lines", lines_seen), ("latency", len(lat)), ("RSS", len(rss))) if n == 0]
+        missing = [what for what, n in (("per-second lines", lines_seen), ("latency", len(lat)), ("RSS", res["rss_samples"])) if n == 0]
         if missing:
             print(f"soak.py: no {', no '.join(missing)} sampled from the launcher's output", file=sys.stderr)
         sys.exit(0 if p.returncode == 0 and not missing else 1)

@@ -50,12 +50,14 @@ int main(int argc, char** argv) {
   svc::traceFromEnvironment(&params);
   std::unique_ptr<SceneStage> stage;
   const bool resuming = resume_wait > 0.0 && !service.lockstep();
+  // First, before the scene file is read (a large mesh takes a while) and anything can fail: a
+  // scene killed during its start-up leaves this line.
+  std::fprintf(stderr, "scene: starting: %s, %.3f Hz, %s mode%s\n", service.sceneFile().c_str(), service.frameRate(),
+               service.lockstep() ? "lock-step" : "live", resuming ? ", resuming" : "");
   try {
     scene = loadScene(service.sceneFile());
     params.step.dt = 1.0 / service.frameRate();
     params.simulate = !no_physics;
-    // A resuming scene builds its world once it has the held poses (after the wait below).
-    if (!resuming) stage = std::make_unique<SceneStage>(scene, params, physicsParamsFor(service.frameRate(), physics_hz));
   } catch (const std::exception& e) {
     cli.fail(e.what());
   }
@@ -64,13 +66,19 @@ int main(int argc, char** argv) {
     cli.fail(service.sceneFile() + ": " + std::to_string(objects) + " objects; the wire carries at most " +
              std::to_string(svc::kMaxSceneObjects));
 
-  // Said before the resume wait (up to --resume-wait s) and the world's build, not after them: a
-  // scene killed meanwhile left no line at all.
+  // Said before the resume wait (up to --resume-wait s) and the world's build, not after them (a
+  // scene killed meanwhile left no line at all).
   std::fprintf(stderr, "scene: '%s' (%d objects, %lld God triangles), %.3f Hz, physics %s, %s mode\n", scene.name.c_str(),
                objects, scene.god_triangles, service.frameRate(), no_physics ? "off" : (std::to_string(physics_hz) + " Hz").c_str(),
                service.lockstep() ? "lock-step" : "live");
   if (resuming)
     std::fprintf(stderr, "scene: resuming: waiting up to %.1f s for the scene state the lab holds (godhand/scene_resume)\n", resume_wait);
+  // A resuming scene builds its world once it has the held poses (after the wait below).
+  try {
+    if (!resuming) stage = std::make_unique<SceneStage>(scene, params, physicsParamsFor(service.frameRate(), physics_hz));
+  } catch (const std::exception& e) {
+    cli.fail(e.what());
+  }
 
   service.connect();
   // A restarted scene: the dynamic objects start where the lab last saw them (runtime/scene_resume.h).

@@ -286,9 +286,12 @@ TEST(DtrackDecoder, TheDayGoesOnAfterAFollowAgainAndARestart) {
   EXPECT_EQ(dec.restarts(), 1u);
 }
 
-// A spoofed datagram far ahead whose ts reads as a midnight (1 s past it, at midday) adds a day;
-// following the stream again takes that day back.
-TEST(DtrackDecoder, AFalseMidnightIsUndoneWhenTheStreamIsFollowedAgain) {
+// A spoofed datagram whose ts reads as a midnight (1 s past it, in the afternoon) adds a day; the
+// next real datagram takes it back, whichever way the spoofed one was accepted: far ahead within
+// the restart window (the real ones stale, then followed again), far ahead beyond it (the real
+// ones read as a tracker restart), or far behind (read as a restart itself). Found by review: the
+// first fix kept the false day in the second case.
+TEST(DtrackDecoder, AFalseMidnightIsTakenBack) {
   const auto dgs = sample("pinch.dtrack");
   ASSERT_GT(dgs.size(), 50u);
   auto withFrameAndTs = [](std::string d, std::uint64_t frame, double ts) {
@@ -299,20 +302,49 @@ TEST(DtrackDecoder, AFalseMidnightIsUndoneWhenTheStreamIsFollowedAgain) {
     d.replace(at, d.find("\r\n", at) - at, buf);
     return d;
   };
+  for (std::uint64_t spoof_frame : {std::uint64_t{1000}, std::uint64_t{5000}, std::uint64_t{1000000000}, std::uint64_t{1}}) {
+    SCOPED_TRACE(spoof_frame);
+    Decoder dec;
+    br::TrackerFrame f;
+    std::int64_t t = 0;
+    const std::uint64_t base = 2000;
+    for (int i = 0; i < 10; ++i, t += 10000)
+      ASSERT_TRUE(dec.feed(withFrameAndTs(dgs[static_cast<size_t>(i)], base + static_cast<std::uint64_t>(i), 50000.0 + 0.01 * i), t, &f));
+    ASSERT_TRUE(dec.feed(withFrameAndTs(dgs[10], spoof_frame, 1.0), t, &f));
+    EXPECT_EQ(f.timestamp_us, (86400LL + 1LL) * 1000000LL);  // read as the next day (nothing tells it apart yet)
+    t += 10000;
+    int accepted_at = -1;
+    for (int i = 10; i < 40 && accepted_at < 0; ++i, t += 10000)
+      if (dec.feed(withFrameAndTs(dgs[static_cast<size_t>(i)], base + static_cast<std::uint64_t>(i), 50000.0 + 0.01 * i), t, &f))
+        accepted_at = i;
+    ASSERT_GE(accepted_at, 0);
+    EXPECT_NEAR(static_cast<double>(f.timestamp_us), (50000.0 + 0.01 * accepted_at) * 1e6, 1.0);  // the same day again
+    ASSERT_TRUE(dec.feed(withFrameAndTs(dgs[40], base + 40, 50000.4), t, &f));
+    EXPECT_NEAR(static_cast<double>(f.timestamp_us), 50000.4e6, 1.0);
+  }
+}
+
+// A tracker restarted across midnight (its last datagram at 23:59:59.9, its first after the
+// restart at 00:00:01): the day goes on (before the review's fix: back 24 h).
+TEST(DtrackDecoder, ARestartAcrossMidnightIsTheNextDay) {
+  const auto dgs = sample("pinch.dtrack");
+  auto withFrameAndTs = [](std::string d, std::uint64_t frame, double ts) {
+    d.replace(0, d.find("\r\n"), "fr " + std::to_string(frame));
+    const size_t at = d.find("\r\nts ") + 2;
+    char buf[40];
+    std::snprintf(buf, sizeof buf, "ts %.6f", ts);
+    d.replace(at, d.find("\r\n", at) - at, buf);
+    return d;
+  };
   Decoder dec;
   br::TrackerFrame f;
-  std::int64_t t = 0;
-  for (int i = 0; i < 10; ++i, t += 10000)
-    ASSERT_TRUE(dec.feed(withFrameAndTs(dgs[static_cast<size_t>(i)], 100 + static_cast<std::uint64_t>(i), 50000.0 + 0.01 * i), t, &f));
-  ASSERT_TRUE(dec.feed(withFrameAndTs(dgs[10], 1000, 1.0), t, &f));
-  EXPECT_EQ(f.timestamp_us, (86400LL + 1LL) * 1000000LL);  // read as the next day (nothing tells it apart yet)
-  t += 10000;
-  int accepted_at = -1;
-  for (int i = 10; i < 40 && accepted_at < 0; ++i, t += 10000)
-    if (dec.feed(withFrameAndTs(dgs[static_cast<size_t>(i)], 100 + static_cast<std::uint64_t>(i), 50000.0 + 0.01 * i), t, &f)) accepted_at = i;
-  ASSERT_GE(accepted_at, 0);
-  EXPECT_EQ(dec.refollows(), 1u);
-  EXPECT_NEAR(static_cast<double>(f.timestamp_us), (50000.0 + 0.01 * accepted_at) * 1e6, 1.0);  // the same day again
+  ASSERT_TRUE(dec.feed(withFrameAndTs(dgs[0], 90000, 86399.8), 0, &f));
+  ASSERT_TRUE(dec.feed(withFrameAndTs(dgs[1], 90001, 86399.9), 10000, &f));
+  ASSERT_TRUE(dec.feed(withFrameAndTs(dgs[2], 1, 1.0), 1200000, &f));
+  EXPECT_EQ(dec.restarts(), 1u);
+  EXPECT_EQ(f.timestamp_us, (86400LL + 1LL) * 1000000LL);
+  ASSERT_TRUE(dec.feed(withFrameAndTs(dgs[3], 2, 1.01), 1210000, &f));
+  EXPECT_EQ(f.timestamp_us, 86401010000LL);
 }
 
 TEST(DtrackDecoder, QualityMinusOneIsNotTracked) {

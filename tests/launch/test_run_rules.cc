@@ -215,7 +215,7 @@ TEST(Delivery, FramesExpectedOfEachRun) {
   EXPECT_EQ(d.expected(10, false), (E{{1, 4}, {2, 10}}));
   EXPECT_EQ(d.expected(10, true), (E{{1, 4}, {2, 2}}));
   EXPECT_EQ(Delivery(1).expected(10, false), (E{{0, 10}}));
-  EXPECT_EQ(Delivery(1).expected(10, true), (E{{0, 10}}));  // nothing came: all lost, whatever the duration
+  EXPECT_EQ(Delivery(1).expected(10, true), E{});  // --duration ended it before its first frame
   EXPECT_EQ(Delivery(1).expected(-1, false), E{});
 }
 

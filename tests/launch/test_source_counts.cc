@@ -104,6 +104,30 @@ TEST(SourceTally, NotPlayedIsNeitherReceivedNorRejectedAndAKilledRunSaysSo) {
                 std::string(kNotPlayedNoFinalCount) + " 141), over 3 ingest runs (summed)");
 }
 
+// Only a run whose final count says its --duration stopped it expects just what it published
+// (Delivery::expected): a run stopped by a signal, killed (its last heartbeat: "not played yet"),
+// cut by --frames, or unknown, expects the whole recording (the review's case: --duration 60 given,
+// the ingest SIGTERMed after 1.5 s, "expected 56, lost 0, check ok" while 250 frames never came).
+TEST(SourceTally, OnlyARunItsDurationStoppedIsCutShortOnPurpose) {
+  EXPECT_EQ(durationReachedReason(1), "--duration 1 s reached");
+  EXPECT_EQ(durationReachedReason(2.5), "--duration 2.5 s reached");
+  EXPECT_TRUE(isDurationReached(durationReachedReason(600)));
+  EXPECT_FALSE(isDurationReached("--duration  s reached"));
+  EXPECT_FALSE(isDurationReached("stopped (SIGINT/SIGTERM)"));
+  SourceTally t;
+  t.update(1, SourceCounts{115, 115, {}, {{durationReachedReason(1), 192}}});
+  t.update(2, SourceCounts{56, 56, {}, {{"stopped (SIGINT/SIGTERM)", 251}}});
+  t.update(3, SourceCounts{30, 30, {}, {{kNotPlayedYet, 277}}});
+  t.update(4, SourceCounts{50, 50, {}, {{"beyond --frames 50", 257}}});
+  t.update(5, SourceCounts{307, 307, {}, {}});
+  EXPECT_TRUE(t.stoppedByDuration(1));
+  for (std::uint64_t run : {2u, 3u, 4u, 5u, 6u}) EXPECT_FALSE(t.stoppedByDuration(run)) << run;
+  EXPECT_FALSE(t.lastRunStoppedByDuration());  // the newest run (5) played to the end
+  t.update(7, SourceCounts{3, 3, {}, {{durationReachedReason(0.1), 304}}});
+  EXPECT_TRUE(t.lastRunStoppedByDuration());
+  EXPECT_FALSE(SourceTally().lastRunStoppedByDuration());
+}
+
 TEST(SourceCounts, SummaryLine) {
   EXPECT_EQ(describeSource(SourceCounts{12, 9, {{"parse error", 2}, {"NaN/Inf", 1}}, {}}),
             "source: received 12, accepted 9, rejected 3 (NaN/Inf 1, parse error 2)");
