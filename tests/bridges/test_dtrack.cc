@@ -238,20 +238,22 @@ TEST(DtrackDecoder, OneDatagramFarAheadStopsTrackingForAQuarterSecondAtMost) {
   EXPECT_NE(dec.summary().find("followed again"), std::string::npos) << dec.summary();
 }
 
+// A datagram of a sample with its frame counter and its `ts` line (time of day, s) replaced.
+static std::string withFrameAndTs(std::string d, std::uint64_t frame, double ts) {
+  d.replace(0, d.find("\r\n"), "fr " + std::to_string(frame));
+  const size_t at = d.find("\r\nts ") + 2;
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "ts %.6f", ts);
+  d.replace(at, d.find("\r\n", at) - at, buf);
+  return d;
+}
+
 // A stream that passed midnight (ts 86399.9 … then 0.0 …: a day added to the times) keeps its day
 // when it is followed again after a datagram far ahead, and across a tracker restart (the ts is the
 // time of day either way). Both used to set the day back to 0: the hands' times jumped back 24 h.
 TEST(DtrackDecoder, TheDayGoesOnAfterAFollowAgainAndARestart) {
   const auto dgs = sample("pinch.dtrack");
   ASSERT_GT(dgs.size(), 60u);
-  auto withFrameAndTs = [](std::string d, std::uint64_t frame, double ts) {
-    d.replace(0, d.find("\r\n"), "fr " + std::to_string(frame));
-    const size_t at = d.find("\r\nts ") + 2;
-    char buf[40];
-    std::snprintf(buf, sizeof buf, "ts %.6f", ts);
-    d.replace(at, d.find("\r\n", at) - at, buf);
-    return d;
-  };
   constexpr std::int64_t kDay = 86400LL * 1000000LL;
   Decoder dec;
   br::TrackerFrame f;
@@ -294,14 +296,6 @@ TEST(DtrackDecoder, TheDayGoesOnAfterAFollowAgainAndARestart) {
 TEST(DtrackDecoder, AFalseMidnightIsTakenBack) {
   const auto dgs = sample("pinch.dtrack");
   ASSERT_GT(dgs.size(), 50u);
-  auto withFrameAndTs = [](std::string d, std::uint64_t frame, double ts) {
-    d.replace(0, d.find("\r\n"), "fr " + std::to_string(frame));
-    const size_t at = d.find("\r\nts ") + 2;
-    char buf[40];
-    std::snprintf(buf, sizeof buf, "ts %.6f", ts);
-    d.replace(at, d.find("\r\n", at) - at, buf);
-    return d;
-  };
   for (std::uint64_t spoof_frame : {std::uint64_t{1000}, std::uint64_t{5000}, std::uint64_t{1000000000}, std::uint64_t{1}}) {
     SCOPED_TRACE(spoof_frame);
     Decoder dec;
@@ -328,14 +322,6 @@ TEST(DtrackDecoder, AFalseMidnightIsTakenBack) {
 // restart at 00:00:01): the day goes on (before the review's fix: back 24 h).
 TEST(DtrackDecoder, ARestartAcrossMidnightIsTheNextDay) {
   const auto dgs = sample("pinch.dtrack");
-  auto withFrameAndTs = [](std::string d, std::uint64_t frame, double ts) {
-    d.replace(0, d.find("\r\n"), "fr " + std::to_string(frame));
-    const size_t at = d.find("\r\nts ") + 2;
-    char buf[40];
-    std::snprintf(buf, sizeof buf, "ts %.6f", ts);
-    d.replace(at, d.find("\r\n", at) - at, buf);
-    return d;
-  };
   Decoder dec;
   br::TrackerFrame f;
   ASSERT_TRUE(dec.feed(withFrameAndTs(dgs[0], 90000, 86399.8), 0, &f));
