@@ -322,7 +322,14 @@ class FrameReplay : public TrackerSource {
     if (pos_ >= end_) return false;
     records_played_ += records_[pos_];
     *frame = frames_[pos_++];
+    unplayable_ = true;
     return true;
+  }
+  void unplay() override {
+    if (!unplayable_ || pos_ == 0) return;  // once per next()
+    unplayable_ = false;
+    --pos_;
+    records_played_ -= records_[pos_];
   }
   std::int64_t remaining() const override { return static_cast<std::int64_t>(end_ - pos_); }
   SourceStats stats() const override {
@@ -349,6 +356,7 @@ class FrameReplay : public TrackerSource {
   SourceStats base_;
   std::vector<std::uint32_t> records_;  // per frame: the records it came from (0: filled into a silence)
   std::uint64_t records_total_ = 0, records_to_limit_ = 0, records_played_ = 0;
+  bool unplayable_ = false;  // next() returned a frame that unplay() may take back
   double rate_ = 0.0;
   size_t pos_ = 0, end_ = 0;
   bool right_ = false, left_ = false;

@@ -84,6 +84,9 @@ class TrackerSource {
   virtual bool hasSide(bool right) const = 0;
   /// The next frame; false at the end of the stream (a replay) or when none is ready.
   virtual bool next(TrackerFrame* frame) = 0;
+  /// The frame last returned by next() was not used (the caller stopped before publishing it): a
+  /// replay counts it as not played again; a live source counted its datagram when it came.
+  virtual void unplay() {}
   /// Frames left, or −1 for a live source.
   virtual std::int64_t remaining() const = 0;
   virtual SourceStats stats() const = 0;

@@ -311,8 +311,12 @@ int main(int argc, char** argv) {
     ++k;
     if (service.lockstep() && k > 1) {
       const int w = waitResolved(k - 1);
-      if (w == 1) return service.finish(0);
+      if (w == 1) {
+        source->unplay();  // frame k was not published
+        return service.finish(0);
+      }
       if (w == 2) {
+        source->unplay();
         ++service.deadline_misses;
         end_reason = "lock-step deadline missed";
         return service.finish(3, "lock-step: no HandState of frame " + std::to_string(k - 1) + " from every cluster within " +
@@ -327,10 +331,16 @@ int main(int argc, char** argv) {
       const auto due = t0 + std::chrono::duration_cast<SteadyClock::duration>(
                                 std::chrono::duration<double>(static_cast<double>(f.timestamp_us - t0_us) * 1e-6 / speed));
       while (SteadyClock::now() < due)
-        if (!service.wait(due)) return service.finish(0);
+        if (!service.wait(due)) {
+          source->unplay();  // stopped while pacing: frame k was not published
+          return service.finish(0);
+        }
       drainStates();
     }
-    if (service.stopping()) return service.finish(0);
+    if (service.stopping()) {
+      source->unplay();
+      return service.finish(0);
+    }
     // Latency is counted from the datagram's arrival for a live source.
     const std::int64_t t_source = live_source && source->lastArrivalNs() > 0 ? source->lastArrivalNs() : svc::nowNs();
     for (size_t c = 0; c < C; ++c) {

@@ -597,6 +597,18 @@ TEST(Sources, AReplayCutShortReceivedWhatItPlayedTheRestIsNotPlayed) {
   EXPECT_EQ(st.received, 100u);  // was 307: the 207 never played counted as received
   EXPECT_EQ(st.not_played, 207u);
   EXPECT_EQ(st.not_played_beyond_limit, 0u);
+  // A frame taken but not used (the ingest stopped before publishing it) is not played again,
+  // once: a second unplay() takes nothing more back.
+  ASSERT_TRUE(s->next(&f));
+  EXPECT_EQ(s->stats().frames, 101u);
+  s->unplay();
+  s->unplay();
+  st = s->stats();
+  EXPECT_EQ(st.frames, 100u);
+  EXPECT_EQ(st.received, 100u);
+  EXPECT_EQ(st.not_played, 207u);
+  ASSERT_TRUE(s->next(&f));  // and it is the next one played
+  EXPECT_EQ(s->stats().frames, 101u);
   while (s->next(&f)) {
   }
   st = s->stats();
