@@ -50,10 +50,11 @@ int main(int argc, char** argv) {
   svc::traceFromEnvironment(&params);
   std::unique_ptr<SceneStage> stage;
   const bool resuming = resume_wait > 0.0 && !service.lockstep();
-  // First, before the scene file is read (a large mesh takes a while) and anything can fail: a
-  // scene killed during its start-up leaves this line.
-  std::fprintf(stderr, "scene: starting: %s, %.3f Hz, %s mode%s\n", service.sceneFile().c_str(), service.frameRate(),
-               service.lockstep() ? "lock-step" : "live", resuming ? ", resuming" : "");
+  // First, before the scene file is read (a large mesh takes a while): a scene killed during its
+  // start-up leaves this line in its log. On stdout (line-buffered, the same log under the
+  // launcher), so that a bad scene file is still one line on stderr, the error.
+  std::printf("scene: starting: %s, %.3f Hz, %s mode%s\n", service.sceneFile().c_str(), service.frameRate(),
+              service.lockstep() ? "lock-step" : "live", resuming ? ", resuming" : "");
   try {
     scene = loadScene(service.sceneFile());
     params.step.dt = 1.0 / service.frameRate();
