@@ -306,11 +306,12 @@ void HandSolver::generateContacts(const HandInput& in) {
     if (driven) reach += askedMotion(X[b], in.targets[b], geo::boundingRadius(shape));
     reach = std::min(reach, params_.max_reach);
     // A body that hit within its last kShellSweeps sweeps gets every triangle of its contact
-    // shell as a candidate (the face it was about to hit, e.g. the second face of a crease), and so does a box (a palm)
-    // always; the others only the closest-point candidates, which is cheaper. (A palm resting on
-    // the bunny touches triangles that no part's closest point finds, and its first solve of a
-    // round turned into one of them and was solved again in 370 of 386 rounds on pinch-bunny,
-    // 126 with the shell: 2x the frames a second, see README, fifteenth session.)
+    // shell as a candidate (the face it was about to hit, e.g. the second face of a crease), and
+    // so does a box (a palm) always; the others only the closest-point candidates, which is
+    // cheaper. (A palm resting on the bunny touches triangles that no part's closest point finds,
+    // and its first solve of a round turned into one of them and was solved again in 370 of 386
+    // rounds on pinch-bunny, 126 with the shell: 2x the frames a second, see README, fifteenth
+    // session.)
     ContactParams cp = params_.contacts;
     if (!shellFor(b)) cp.shell = 0.0;
     std::vector<Contact>& out = body_contacts_[b];

@@ -1,7 +1,7 @@
-#include <cstdio>
 #include "common/source_counts.h"
 
 #include <algorithm>
+#include <cstdio>
 
 namespace godhand {
 
