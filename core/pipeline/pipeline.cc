@@ -47,9 +47,12 @@ Pipeline::Pipeline(const Scene& scene, std::vector<const HandModel*> hands, Pipe
   proposals_.resize(models_.size());
   report_.hands.resize(models_.size());
   workers_ = std::make_unique<Workers>(std::max(1, threads));
+  hand_us_.assign(models_.size(), 0.0);
   solve_hand_ = [this](int h) {
     const size_t i = static_cast<size_t>(h);
+    const Clock::time_point t0 = Clock::now();
     proposals_[i] = &solvers_[i]->step(*inputs_[i], frame_);
+    hand_us_[i] = usSince(t0);
   };
   if (threads >= 2 && solvers_.size() >= 2) {
     // Each thread of the pool takes hands while any is left, then helps the hands still running
@@ -103,6 +106,8 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
   for (size_t h = 0; h < inputs.size(); ++h) inputs_[h] = &inputs[h];
   frame_ = frame;
   if (share_) {
+    // The hand that took longest last frame has its bodies' jobs taken first (JobShare::setWeight).
+    for (size_t h = 0; h < solvers_.size(); ++h) share_->setWeight(static_cast<int>(h), hand_us_[h]);
     next_hand_.store(0);
     hands_done_.store(0);
     workers_->runSlots(share_->threads(), solve_hands_shared_);

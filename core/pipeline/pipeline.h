@@ -136,6 +136,7 @@ class Pipeline {
   std::function<void(int, int)> solve_hands_shared_;
   std::atomic<int> next_hand_{0}, hands_done_{0};
   std::vector<const HandProposal*> proposals_;
+  std::vector<double> hand_us_;  // per hand: its solver's time in the last frame (JobShare weights)
   FrameReport report_;
   PipelineCounters counters_;
 };

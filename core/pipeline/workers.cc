@@ -125,6 +125,7 @@ struct JobShare::Lane {
   std::atomic<int> unfinished{0};
   std::atomic<int> users{0};   ///< helpers between their check of `posted` and their last job
   std::atomic<bool> posted{false};
+  std::atomic<double> weight{0.0};
   std::mutex error_mutex;
   std::exception_ptr error;
 };
@@ -137,22 +138,45 @@ JobShare::JobShare(int lanes, int threads) : threads_(threads) {
 
 JobShare::~JobShare() = default;
 
-bool JobShare::take(Lane& lane, int thread) {
+bool JobShare::takeOne(Lane& lane, int thread) {
   // The owner's slot is 0; a helper's is its thread index, shifted past the owner's.
   const int slot = thread == lane.owner ? 0 : thread < lane.owner ? thread + 1 : thread;
-  bool ran = false;
-  for (;;) {
-    const int i = lane.next.fetch_add(1);
-    if (i >= lane.n) return ran;
-    ran = true;
-    try {
-      (*lane.job)(i, slot);
-    } catch (...) {
-      std::lock_guard<std::mutex> lock(lane.error_mutex);
-      if (!lane.error) lane.error = std::current_exception();
-    }
-    lane.unfinished.fetch_sub(1);
+  const int i = lane.next.fetch_add(1);
+  if (i >= lane.n) return false;
+  try {
+    (*lane.job)(i, slot);
+  } catch (...) {
+    std::lock_guard<std::mutex> lock(lane.error_mutex);
+    if (!lane.error) lane.error = std::current_exception();
   }
+  lane.unfinished.fetch_sub(1);
+  return true;
+}
+
+bool JobShare::take(Lane& lane, int thread) {
+  bool ran = false;
+  while (takeOne(lane, thread)) ran = true;
+  return ran;
+}
+
+bool JobShare::takeHeavier(int own, int thread) {
+  const double mine = lanes_[static_cast<size_t>(own)]->weight.load(std::memory_order_relaxed);
+  for (size_t l = 0; l < lanes_.size(); ++l) {
+    if (static_cast<int>(l) == own) continue;
+    Lane& lane = *lanes_[l];
+    if (!lane.posted.load() || !(lane.weight.load(std::memory_order_relaxed) > mine)) continue;
+    lane.users.fetch_add(1);
+    // Checked again once counted (as in help()): a lane its owner has taken down is left alone.
+    const bool ran = lane.posted.load() && takeOne(lane, thread);
+    lane.users.fetch_sub(1);
+    if (ran) return true;
+  }
+  return false;
+}
+
+void JobShare::setWeight(int lane, double weight) {
+  if (lane < 0 || lane >= static_cast<int>(lanes_.size())) throw std::invalid_argument("JobShare::setWeight: no such lane");
+  lanes_[static_cast<size_t>(lane)]->weight.store(weight, std::memory_order_relaxed);
 }
 
 void JobShare::run(int lane_index, int thread, int n, const std::function<void(int, int)>& job) {
@@ -168,9 +192,14 @@ void JobShare::run(int lane_index, int thread, int n, const std::function<void(i
   lane.next.store(0);
   lane.unfinished.store(n);
   lane.posted.store(true);  // (sequentially consistent: the fields above are seen by whoever sees this)
-  take(lane, thread);
-  // A helper may still run the last jobs: at most one each.
-  while (lane.unfinished.load() > 0) std::this_thread::yield();
+  // Its own jobs, each after any job of a heavier posted lane (setWeight).
+  for (;;) {
+    if (takeHeavier(lane_index, thread)) continue;
+    if (!takeOne(lane, thread)) break;
+  }
+  // A helper may still run the last jobs: at most one each (meanwhile, a heavier lane's).
+  while (lane.unfinished.load() > 0)
+    if (!takeHeavier(lane_index, thread)) std::this_thread::yield();
   lane.posted.store(false);
   // A helper that saw the lane posted may not have left it yet (it finds no job left): the lane
   // is not reset under it.

@@ -83,12 +83,22 @@ class JobShare {
   /// Helper side, from pool thread `thread`: takes posted jobs until done() holds (polled;
   /// yields the core whenever nothing is posted).
   void help(int thread, const std::function<bool()>& done);
+  /// A lane's weight (e.g. its owner's time in the last frame; 0 at first). An owner running its
+  /// own lane takes, before each of its own jobs, a job of any posted lane that weighs more: the
+  /// light hand's thread works on the heavy hand's bodies while they are posted and on its own
+  /// hand while the heavy one is in a serial phase (its QPs), where it would otherwise wait for
+  /// it once done. Which thread runs a job never changes its result.
+  void setWeight(int lane, double weight);
 
  private:
   struct Lane;
   /// Takes jobs of `lane` (posted: checked under its users count) until none is left; true if it
   /// ran any.
   bool take(Lane& lane, int thread);
+  /// One job of a posted lane other than `own` that weighs more than it; true if it ran one.
+  bool takeHeavier(int own, int thread);
+  /// One job of `lane`; true if it ran one.
+  bool takeOne(Lane& lane, int thread);
 
   int threads_;
   std::vector<std::unique_ptr<Lane>> lanes_;

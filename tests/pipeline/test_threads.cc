@@ -10,9 +10,11 @@
 #include <chrono>
 #include <cstring>
 #include <functional>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "common/files.h"
@@ -238,11 +240,15 @@ TEST(Threads, AJobsExceptionComesBackAfterTheOthersRan) {
 // runs exactly once; the owner's jobs run in slot 0 on the owner's thread, a helper's in a slot
 // 1 .. threads − 1 that no other running job of the same owner holds; run() returns only after
 // all of its jobs have finished (a job still running on a helper would be caught by the count).
+// (Also with the lanes weighted apart, where an owner takes a heavier lane's jobs between its own.)
 TEST(Threads, JobShareRunsEveryJobOnceInExclusiveSlots) {
   for (int threads : {2, 3, 4}) {
     for (int owners : {1, threads - 1, threads}) {
+     for (bool weighted : {false, true}) {
       if (owners < 1) continue;
       JobShare share(owners, threads);
+      if (weighted)
+        for (int o = 0; o < owners; ++o) share.setWeight(o, (o * 7) % 3 + 0.5 * o);
       constexpr int kCalls = 100, kJobs = 17;
       // Per owner: how often each job ran, and which slots are held right now.
       std::vector<std::vector<std::atomic<int>>> count(static_cast<size_t>(owners));
@@ -299,10 +305,65 @@ TEST(Threads, JobShareRunsEveryJobOnceInExclusiveSlots) {
       EXPECT_EQ(bad_slot.load(), 0);
       EXPECT_EQ(overlap.load(), 0) << threads << " threads, " << owners << " owners";
       EXPECT_EQ(unfinished_at_return.load(), 0);
-      std::printf("[figure] JobShare, %d threads, %d owners: %d of %d jobs run by helpers\n", threads, owners,
-                  by_helpers.load(), owners * kCalls * kJobs);
+      std::printf("[figure] JobShare, %d threads, %d owners%s: %d of %d jobs run by helpers\n", threads, owners,
+                  weighted ? " weighted apart" : "", by_helpers.load(), owners * kCalls * kJobs);
+     }
     }
   }
+}
+
+// setWeight: the owner of a light lane takes what is left of a heavier posted lane before each
+// of its own jobs (the light hand's thread helps the heavy hand first), and never the other way
+// round. The heavy owner's first job holds until the light owner has taken the rest of its jobs
+// (or 2 s pass: then the order below fails).
+TEST(Threads, JobShareLightOwnerTakesAHeavierLanesJobsFirst) {
+  for (bool weighted : {true, false}) {
+    JobShare share(2, 2);
+    if (weighted) {
+      share.setWeight(0, 10.0);
+      share.setWeight(1, 1.0);
+    }
+    std::atomic<bool> heavy_posted{false};
+    std::atomic<int> heavy_by_light{0};
+    std::mutex log_mutex;
+    std::vector<std::pair<int, int>> light_log;  // (lane, job) as the light owner's thread ran them
+    const auto deadline = [] { return std::chrono::steady_clock::now() + std::chrono::seconds(2); };
+    std::thread light([&] {
+      const auto until = deadline();
+      while (!heavy_posted.load() && std::chrono::steady_clock::now() < until) std::this_thread::yield();
+      share.run(1, 1, 4, [&](int i, int) {
+        std::lock_guard<std::mutex> lock(log_mutex);
+        light_log.emplace_back(1, i);
+      });
+    });
+    const std::thread::id heavy_id = std::this_thread::get_id();
+    share.run(0, 0, 4, [&](int i, int) {
+      if (std::this_thread::get_id() != heavy_id) {
+        std::lock_guard<std::mutex> lock(log_mutex);
+        light_log.emplace_back(0, i);
+        ++heavy_by_light;
+        return;
+      }
+      if (i != 0) return;
+      heavy_posted = true;
+      // Weighted: wait for the light owner to take jobs 1-3; not weighted, it never does (a
+      // short wait shows that it does not).
+      const auto until = weighted ? deadline() : std::chrono::steady_clock::now() + std::chrono::milliseconds(50);
+      while (heavy_by_light.load() < 3 && std::chrono::steady_clock::now() < until) std::this_thread::yield();
+    });
+    light.join();
+    if (weighted) {
+      const std::vector<std::pair<int, int>> expected{{0, 1}, {0, 2}, {0, 3}, {1, 0}, {1, 1}, {1, 2}, {1, 3}};
+      EXPECT_EQ(light_log, expected);
+    } else {
+      // Equal weights: the light owner runs only its own jobs from run() (none of the heavy lane's).
+      for (const auto& e : light_log) EXPECT_EQ(e.first, 1);
+      EXPECT_EQ(light_log.size(), 4u);
+    }
+  }
+  JobShare share(2, 2);
+  EXPECT_THROW(share.setWeight(2, 1.0), std::invalid_argument);
+  EXPECT_THROW(share.setWeight(-1, 1.0), std::invalid_argument);
 }
 
 // The owner's slot is 0 and only the owner's thread runs in it; helpers run elsewhere.
