@@ -251,6 +251,13 @@ void TreeSolver::reserve(int bodies, int rows) {
     fac_.resize(static_cast<size_t>(fac_ld_) * static_cast<size_t>(fac_ld_));
     tmp_.resize(static_cast<size_t>(fac_ld_));
   }
+  // The per-inequality-row buffers, for any count up to `rows` (the projection's iterations take
+  // fewer rows than its first: StepParams::projection_row_reach).
+  const size_t r = static_cast<size_t>(rcap);
+  for (std::vector<double>* v : {&d_, &b_, &scale0_, &enorm2_, &lambda_, &s_}) v->reserve(r);
+  for (std::vector<unsigned char>* v : {&in_passive_, &blocked_, &have_e_, &have_h_}) v->reserve(r);
+  ineq_.reserve(r);
+  passive_.reserve(r);
 }
 
 bool TreeSolver::refactor() {

@@ -67,6 +67,10 @@ struct StepParams {
   /// rest of the hand); false: one scale for every body.
   bool clamp_contact_bodies_apart = false;
   double projection_tolerance = 1e-10;  ///< m / rad: joints and limits closed to this
+  /// A projection iteration without the pull takes the rows of the contacts within this many
+  /// times its errors' reach (gap + extent × (lock + limit) + contact violation) of their margin
+  /// only; the others cannot become active. +inf: every contact's row, every iteration.
+  double projection_row_reach = 10.0;
   double target_unit_tolerance = 1e-3;  ///< |‖q‖ − 1| above this rejects a target
 
   /// Throws std::invalid_argument naming the first bad field.
@@ -139,6 +143,7 @@ class JointProjector {
   ExactSolver exact_;
   std::vector<unsigned char> warm_;  // the last iteration's active rows (the next one's warm start)
   std::vector<JointFrame> frames_;   // the joints at the current poses: errors and rows from one evaluation
+  double model_extent_ = 0.0;        // m: the bodies' largest distance apart at rest, plus 5 cm
 };
 
 struct StageTimes {

@@ -1280,6 +1280,54 @@ TEST(JointProjection, ReclosesACutMotionWithoutPushingAContactIn) {
   EXPECT_EQ(fnv1a(stepper.poses()), fnv1a(X));
 }
 
+// The projection's iterations after the first take the rows of the contacts near their margin
+// only (StepParams::projection_row_reach): the rows left out, of contacts centimetres below, are
+// inactive, so the poses are the same bit for bit as with every row (an infinite reach), and no
+// contact, near or far, ends further in than allowed.
+TEST(JointProjection, RowsOfFarContactsLeftOutChangeNothing) {
+  const HandModel& m = hand16();
+  const Pose X_WM0{Vec3(0.0, 0.0, 0.10), Quat::Identity()};
+  const Pose X_WM1{Vec3(0.03, -0.02, 0.08), Quat(Eigen::AngleAxisd(0.9, Vec3(1, 1, 0).normalized()))};
+  const std::vector<Pose> X_prev = curledPose(m, X_WM0, 0.2), X_new = curledPose(m, X_WM1, 0.9);
+  std::vector<Pose> X_cut;
+  cutMotion(X_prev, X_new, 0.5, &X_cut);
+  const double h_near = minHeightAbovePlane(m, X_cut, 0.0) - 5e-4;
+  std::vector<Contact> contacts;
+  planeContacts(m, X_cut, h_near, 0.01, contacts);
+  const size_t near_count = contacts.size();
+  ASSERT_GT(near_count, 0u);
+  for (double below : {0.02, 0.05}) {
+    std::vector<Contact> far;
+    planeContacts(m, X_cut, h_near - below, 0.1, far);
+    contacts.insert(contacts.end(), far.begin(), far.end());
+  }
+  ASSERT_GT(contacts.size(), near_count);
+  std::vector<std::vector<Pose>> results;
+  std::vector<int> iterations;
+  for (double reach : {10.0, std::numeric_limits<double>::infinity()}) {
+    StepParams params;
+    params.projection_row_reach = reach;
+    JointProjector projector(m, params);
+    projector.reserve(512);
+    std::vector<Pose> X = X_cut;
+    JointProjector::Input in;
+    in.contacts = contacts.data();
+    in.num_contacts = static_cast<int>(contacts.size());
+    in.X_ref = X_cut.data();
+    const JointProjector::Result r = projector.project(X, in);
+    EXPECT_GE(r.iterations, 2);  // (the later iterations are the ones that leave rows out)
+    EXPECT_LE(r.joint_errors.gap, 1e-9);
+    EXPECT_GE(minHeightAbovePlane(m, X, h_near), std::min(5e-4, params.rows.margin) - 1e-6);
+    results.push_back(X);
+    iterations.push_back(r.iterations);
+  }
+  EXPECT_EQ(fnv1a(results[0]), fnv1a(results[1]));
+  EXPECT_EQ(iterations[0], iterations[1]);
+  StepParams bad;
+  bad.projection_row_reach = 0.5;
+  EXPECT_THROW(bad.validate(), std::invalid_argument);
+}
+
 TEST(StepDeterminism, IdenticalInputsGiveBitIdenticalPoses) {
   for (SolverKind kind : {SolverKind::Exact, SolverKind::Pgs}) {
     // Two steppers in lock-step on the same inputs.
