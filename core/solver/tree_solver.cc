@@ -21,16 +21,31 @@ constexpr int kMaxRows = 128;
 /// In-place Cholesky of the leading n × n block of a (column-major, leading dimension ld):
 /// lower triangle L with L Lᵀ = a. false where a pivot is not positive.
 bool cholesky(double* a, int n, int ld) {
+  constexpr int kMaxDense = 128;
+  int nz[kMaxDense];  // the columns p < j of row j that are not zero (a tree's H: j's descendants)
   for (int j = 0; j < n; ++j) {
     double* cj = a + static_cast<size_t>(j) * ld;
+    // Zero terms left out: the same sums, in the same order, to the bit (and in O(nonzeros) for
+    // H, whose factor has no fill: see structure()). Only where the row fits the list.
+    int m = 0;
+    const bool sparse = n <= kMaxDense;
+    if (sparse)
+      for (int p = 0; p < j; ++p)
+        if (a[static_cast<size_t>(p) * ld + j] != 0.0) nz[m++] = p;
     double d = cj[j];
-    for (int p = 0; p < j; ++p) d -= a[static_cast<size_t>(p) * ld + j] * a[static_cast<size_t>(p) * ld + j];
+    if (sparse)
+      for (int k = 0; k < m; ++k) d -= a[static_cast<size_t>(nz[k]) * ld + j] * a[static_cast<size_t>(nz[k]) * ld + j];
+    else
+      for (int p = 0; p < j; ++p) d -= a[static_cast<size_t>(p) * ld + j] * a[static_cast<size_t>(p) * ld + j];
     if (!(d > 0.0) || !std::isfinite(d)) return false;
     const double l = std::sqrt(d);
     cj[j] = l;
     for (int i = j + 1; i < n; ++i) {
       double s = cj[i];
-      for (int p = 0; p < j; ++p) s -= a[static_cast<size_t>(p) * ld + i] * a[static_cast<size_t>(p) * ld + j];
+      if (sparse)
+        for (int k = 0; k < m; ++k) s -= a[static_cast<size_t>(nz[k]) * ld + i] * a[static_cast<size_t>(nz[k]) * ld + j];
+      else
+        for (int p = 0; p < j; ++p) s -= a[static_cast<size_t>(p) * ld + i] * a[static_cast<size_t>(p) * ld + j];
       cj[i] = s / l;
     }
   }
