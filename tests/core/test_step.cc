@@ -1228,6 +1228,30 @@ std::vector<std::uint64_t> hashedRun(SolverKind kind, int steps) {
   return hashes;
 }
 
+// The two projection tests' motion: a curled hand moved and turned, cut at half of each body's
+// own motion (cutMotion), which opens the joints.
+std::vector<Pose> halfCutMotion(const HandModel& m, std::vector<Pose>* X_prev, std::vector<Pose>* X_new) {
+  const Pose X_WM0{Vec3(0.0, 0.0, 0.10), Quat::Identity()};
+  const Pose X_WM1{Vec3(0.03, -0.02, 0.08), Quat(Eigen::AngleAxisd(0.9, Vec3(1, 1, 0).normalized()))};
+  *X_prev = curledPose(m, X_WM0, 0.2);
+  *X_new = curledPose(m, X_WM1, 0.9);
+  std::vector<Pose> X_cut;
+  cutMotion(*X_prev, *X_new, 0.5, &X_cut);
+  return X_cut;
+}
+
+// JointProjector on poses X (in place) against contacts found at X_ref.
+JointProjector::Result projectAgainst(const HandModel& m, const StepParams& params, const std::vector<Pose>& X_ref,
+                                      const std::vector<Contact>& contacts, std::vector<Pose>* X) {
+  JointProjector projector(m, params);
+  projector.reserve(512);
+  JointProjector::Input in;
+  in.contacts = contacts.data();
+  in.num_contacts = static_cast<int>(contacts.size());
+  in.X_ref = X_ref.data();
+  return projector.project(*X, in);
+}
+
 // Clipping a motion (Algorithm 1): each body cut back to a fraction of its own motion opens the
 // joints by O(θ²); the projection re-closes them against contacts found at the cut poses, by a
 // correction of the order of the gap, pushing no contact point further in than it was (the plane
@@ -1235,13 +1259,10 @@ std::vector<std::uint64_t> hashedRun(SolverKind kind, int steps) {
 // solver's (ClusterStepper::setMotion, interpolate, reproject) give the same poses bit for bit.
 TEST(JointProjection, ReclosesACutMotionWithoutPushingAContactIn) {
   const HandModel& m = hand16();
-  const Pose X_WM0{Vec3(0.0, 0.0, 0.10), Quat::Identity()};
-  const Pose X_WM1{Vec3(0.03, -0.02, 0.08), Quat(Eigen::AngleAxisd(0.9, Vec3(1, 1, 0).normalized()))};
-  const std::vector<Pose> X_prev = curledPose(m, X_WM0, 0.2), X_new = curledPose(m, X_WM1, 0.9);
+  std::vector<Pose> X_prev, X_new;
+  const std::vector<Pose> X_cut = halfCutMotion(m, &X_prev, &X_new);
   ASSERT_LE(jointErrors(m, X_prev.data()).gap, 1e-12);
   ASSERT_LE(jointErrors(m, X_new.data()).gap, 1e-12);
-  std::vector<Pose> X_cut;
-  cutMotion(X_prev, X_new, 0.5, &X_cut);
   const double gap_before = jointErrors(m, X_cut.data()).gap;
   EXPECT_GT(gap_before, 1e-5);  // per-body interpolation opens the joints
   const double h = minHeightAbovePlane(m, X_cut, 0.0) - 5e-4;  // a plane 0.5 mm below the lowest point
@@ -1250,14 +1271,8 @@ TEST(JointProjection, ReclosesACutMotionWithoutPushingAContactIn) {
   ASSERT_FALSE(contacts.empty());
 
   StepParams params;
-  JointProjector projector(m, params);
-  projector.reserve(256);
   std::vector<Pose> X = X_cut;
-  JointProjector::Input in;
-  in.contacts = contacts.data();
-  in.num_contacts = static_cast<int>(contacts.size());
-  in.X_ref = X_cut.data();
-  const JointProjector::Result r = projector.project(X, in);
+  const JointProjector::Result r = projectAgainst(m, params, X_cut, contacts, &X);
   const JointErrors after = jointErrors(m, X.data());
   figure("projection_gap_before_m", gap_before);
   figure("projection_gap_after_m", after.gap);
@@ -1286,11 +1301,8 @@ TEST(JointProjection, ReclosesACutMotionWithoutPushingAContactIn) {
 // contact, near or far, ends further in than allowed.
 TEST(JointProjection, RowsOfFarContactsLeftOutChangeNothing) {
   const HandModel& m = hand16();
-  const Pose X_WM0{Vec3(0.0, 0.0, 0.10), Quat::Identity()};
-  const Pose X_WM1{Vec3(0.03, -0.02, 0.08), Quat(Eigen::AngleAxisd(0.9, Vec3(1, 1, 0).normalized()))};
-  const std::vector<Pose> X_prev = curledPose(m, X_WM0, 0.2), X_new = curledPose(m, X_WM1, 0.9);
-  std::vector<Pose> X_cut;
-  cutMotion(X_prev, X_new, 0.5, &X_cut);
+  std::vector<Pose> X_prev, X_new;
+  const std::vector<Pose> X_cut = halfCutMotion(m, &X_prev, &X_new);
   const double h_near = minHeightAbovePlane(m, X_cut, 0.0) - 5e-4;
   std::vector<Contact> contacts;
   planeContacts(m, X_cut, h_near, 0.01, contacts);
@@ -1307,14 +1319,8 @@ TEST(JointProjection, RowsOfFarContactsLeftOutChangeNothing) {
   for (double reach : {10.0, std::numeric_limits<double>::infinity()}) {
     StepParams params;
     params.projection_row_reach = reach;
-    JointProjector projector(m, params);
-    projector.reserve(512);
     std::vector<Pose> X = X_cut;
-    JointProjector::Input in;
-    in.contacts = contacts.data();
-    in.num_contacts = static_cast<int>(contacts.size());
-    in.X_ref = X_cut.data();
-    const JointProjector::Result r = projector.project(X, in);
+    const JointProjector::Result r = projectAgainst(m, params, X_cut, contacts, &X);
     EXPECT_GE(r.iterations, 2);  // (the later iterations are the ones that leave rows out)
     EXPECT_LE(r.joint_errors.gap, 1e-9);
     EXPECT_GE(minHeightAbovePlane(m, X, h_near), std::min(5e-4, params.rows.margin) - 1e-6);
