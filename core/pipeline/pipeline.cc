@@ -106,8 +106,10 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
   for (size_t h = 0; h < inputs.size(); ++h) inputs_[h] = &inputs[h];
   frame_ = frame;
   if (share_) {
-    // The hand that took longest last frame has its bodies' jobs taken first (JobShare::setWeight).
-    for (size_t h = 0; h < solvers_.size(); ++h) share_->setWeight(static_cast<int>(h), hand_us_[h]);
+    // The hand that took longest last frame, less the time its thread spent on another hand's
+    // jobs, has its bodies' jobs taken first (JobShare::setWeight).
+    for (size_t h = 0; h < solvers_.size(); ++h)
+      share_->setWeight(static_cast<int>(h), hand_us_[h] - share_->takeLent(static_cast<int>(h)));
     next_hand_.store(0);
     hands_done_.store(0);
     workers_->runSlots(share_->threads(), solve_hands_shared_);

@@ -126,6 +126,7 @@ struct JobShare::Lane {
   std::atomic<int> users{0};   ///< helpers between their check of `posted` and their last job
   std::atomic<bool> posted{false};
   std::atomic<double> weight{0.0};
+  std::atomic<double> lent_us{0.0};  ///< its owner's time in heavier lanes' jobs (takeHeavier)
   std::mutex error_mutex;
   std::exception_ptr error;
 };
@@ -167,11 +168,22 @@ bool JobShare::takeHeavier(int own, int thread) {
     if (!lane.posted.load() || !(lane.weight.load(std::memory_order_relaxed) > mine)) continue;
     lane.users.fetch_add(1);
     // Checked again once counted (as in help()): a lane its owner has taken down is left alone.
+    const auto t0 = std::chrono::steady_clock::now();
     const bool ran = lane.posted.load() && takeOne(lane, thread);
     lane.users.fetch_sub(1);
-    if (ran) return true;
+    if (ran) {
+      const double us = std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
+      std::atomic<double>& lent = lanes_[static_cast<size_t>(own)]->lent_us;
+      lent.store(lent.load(std::memory_order_relaxed) + us, std::memory_order_relaxed);  // (only its owner adds)
+      return true;
+    }
   }
   return false;
+}
+
+double JobShare::takeLent(int lane) {
+  if (lane < 0 || lane >= static_cast<int>(lanes_.size())) throw std::invalid_argument("JobShare::takeLent: no such lane");
+  return lanes_[static_cast<size_t>(lane)]->lent_us.exchange(0.0, std::memory_order_relaxed);
 }
 
 void JobShare::setWeight(int lane, double weight) {

@@ -89,6 +89,9 @@ class JobShare {
   /// hand while the heavy one is in a serial phase (its QPs), where it would otherwise wait for
   /// it once done. Which thread runs a job never changes its result.
   void setWeight(int lane, double weight);
+  /// The time (µs) the owner of `lane` spent in heavier lanes' jobs since the last call (what
+  /// setWeight's caller takes off its owner's time: a weight is the owner's own work).
+  double takeLent(int lane);
 
  private:
   struct Lane;

@@ -352,10 +352,16 @@ TEST(Threads, JobShareLightOwnerTakesAHeavierLanesJobsFirst) {
       while (heavy_by_light.load() < 3 && std::chrono::steady_clock::now() < until) std::this_thread::yield();
     });
     light.join();
+    // The time the light owner lent to the heavy lane is told apart (and then reset).
+    const double lent_light = share.takeLent(1), lent_heavy = share.takeLent(0);
+    EXPECT_EQ(lent_heavy, 0.0);
+    EXPECT_EQ(share.takeLent(1), 0.0);
     if (weighted) {
       const std::vector<std::pair<int, int>> expected{{0, 1}, {0, 2}, {0, 3}, {1, 0}, {1, 1}, {1, 2}, {1, 3}};
       EXPECT_EQ(light_log, expected);
+      EXPECT_GT(lent_light, 0.0);
     } else {
+      EXPECT_EQ(lent_light, 0.0);
       // Equal weights: the light owner runs only its own jobs from run() (none of the heavy lane's).
       for (const auto& e : light_log) EXPECT_EQ(e.first, 1);
       EXPECT_EQ(light_log.size(), 4u);
@@ -364,6 +370,7 @@ TEST(Threads, JobShareLightOwnerTakesAHeavierLanesJobsFirst) {
   JobShare share(2, 2);
   EXPECT_THROW(share.setWeight(2, 1.0), std::invalid_argument);
   EXPECT_THROW(share.setWeight(-1, 1.0), std::invalid_argument);
+  EXPECT_THROW(share.takeLent(2), std::invalid_argument);
 }
 
 // The owner's slot is 0 and only the owner's thread runs in it; helpers run elsewhere.
