@@ -555,6 +555,7 @@ int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body
       ct.body = body;
       ct.object = static_cast<int>(oi);
       ct.key = contactKey(static_cast<int>(oi), c.triangle, body, sample_[static_cast<size_t>(k)]);
+      ct.triangle = c.triangle;
       ct.p_W = o.X_WO * c.closest.p_shape;
       ct.n_W = o.X_WO.q * c.closest.n;
       ct.distance = c.closest.distance;
@@ -568,6 +569,23 @@ int CollisionWorld::contacts(const Shape& body_shape, const Pose& X_WB, int body
     }
   }
   return added;
+}
+
+bool CollisionWorld::triangleContact(const Shape& body_shape, const Pose& X_WB, const Contact& c, Contact* out) const {
+  if (c.object < 0 || static_cast<size_t>(c.object) >= objects_.size() || c.triangle < 0) return false;
+  const Object& o = objects_[static_cast<size_t>(c.object)];
+  if (!o.god || c.triangle >= o.god->triangleCount()) return false;
+  const Pose X_OB = o.X_WO.inverse() * X_WB;
+  if (insideGod(o, X_OB)) return false;
+  const geo::TriangleMesh& mesh = o.god->mesh();
+  const auto& t = mesh.triangles[static_cast<size_t>(c.triangle)];
+  const geo::ClosestPoints cp = geo::shapeTriangle(grown(body_shape, o.skin), X_OB, mesh.vertices[static_cast<size_t>(t[0])],
+                                                   mesh.vertices[static_cast<size_t>(t[1])], mesh.vertices[static_cast<size_t>(t[2])]);
+  *out = c;
+  out->p_W = o.X_WO * cp.p_shape;
+  out->n_W = o.X_WO.q * cp.n;
+  out->distance = cp.distance;
+  return true;
 }
 
 geo::SweepResult CollisionWorld::sweep(const Shape& shape, const Pose& X_W0, const Pose& X_W1,

@@ -110,6 +110,10 @@ class CollisionWorld {
   /// `start` (optional) receives what the query found for a sweep from X_WB (QueryStart).
   int contacts(const Shape& shape, const Pose& X_WB, int body, double reach, const ContactParams& params,
                std::vector<Contact>* out, QueryStart* start = nullptr);
+  /// The contact `c` (found by contacts(): its object, triangle, body and key) measured again
+  /// with the body's shape at X_WB: false where its object or triangle is gone or the body is
+  /// inside the object.
+  bool triangleContact(const Shape& shape, const Pose& X_WB, const Contact& c, Contact* out) const;
 
   /// Time of contact of the motion X_W0 → X_W1 against every object it can reach (objects held
   /// at their current poses). `object_hit` (optional) receives the object that limits it, or −1.

@@ -434,6 +434,7 @@ class HandSolver {
   // shape at X_query_: d(0) of a sweep from there, valid until the scene moves (start_valid_).
   std::vector<CollisionWorld::QueryStart> query_start_;
   std::vector<Pose> X_query_;
+  std::vector<std::vector<Contact>> persist_;  // per body: its last hit's contacts
   std::vector<unsigned char> start_valid_;
   /// Body b's QueryStart for a sweep from X_from, or nullptr (another pose or scene).
   const CollisionWorld::QueryStart* startAt(size_t b, const Pose& X_from) const;

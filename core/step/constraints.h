@@ -41,6 +41,7 @@ struct Contact {
   double distance = 0.0;      ///< signed distance along n, m (< 0 = penetrating)
   std::uint64_t key = 0;      ///< persistent identity for warm starts (0 = none)
   int object = -1;            ///< scene object id, for the reaction force
+  int triangle = -1;          ///< the object's God-mesh triangle (CollisionWorld), -1 if none
 };
 
 struct RowParams {

@@ -476,6 +476,79 @@ TEST(Pipeline, ASkinKeepsTheGodSideThatFarOut) {
   EXPECT_NEAR(world.penetration(ball, at(0, 0, top + r - 0.003)), 0.003, 1e-9);
 }
 
+// A contact measured again with the body elsewhere (CollisionWorld::triangleContact, the
+// persistence of a hit's contacts): the whole shape's distance to the contact's triangle, by an
+// independent oracle (brute force over points of the shape's core: the point-triangle distance,
+// less the core radius and the object's skin); for a ball, whose only part is itself, the same
+// contact where it was found.
+TEST(Pipeline, AContactMeasuredAgainIsItsTrianglesDistance) {
+  const double skin = 0.002, top = 0.03;
+  const Scene scene = skinnedBlock(skin);
+  CollisionWorld world(scene);
+  const geo::TriangleMesh& mesh = scene.objects[0].god->mesh();
+  Shape ball;
+  ball.type = ShapeType::Sphere;
+  ball.radius = 0.01;
+  Shape finger;
+  finger.type = ShapeType::Capsule;
+  finger.radius = 0.008;
+  finger.half_length = 0.012;
+  // The oracle: min over 2,001 points of the core segment (a ball: its centre).
+  auto bruteDistance = [&](const Shape& shape, const Pose& X_W, int triangle) {
+    const auto& t = mesh.triangles[static_cast<size_t>(triangle)];
+    const Vec3 a = mesh.vertices[static_cast<size_t>(t[0])], b = mesh.vertices[static_cast<size_t>(t[1])],
+               c = mesh.vertices[static_cast<size_t>(t[2])];
+    const Pose X_O = scene.objects[0].X_WO.inverse() * X_W;
+    const int n = shape.type == ShapeType::Capsule ? 2000 : 0;
+    double best = std::numeric_limits<double>::infinity();
+    for (int i = 0; i <= n; ++i) {
+      const double s = n == 0 ? 0.0 : -shape.half_length + 2.0 * shape.half_length * i / n;
+      Vec3 q;
+      best = std::min(best, geo::pointTriangleDistance(X_O * Vec3(0, 0, s), a, b, c, &q));
+    }
+    return best - shape.radius - skin;
+  };
+  const Pose ball_at = at(0.001, -0.002, top + 0.01 + 0.004);
+  const Pose finger_at{Vec3(0.004, -0.003, top + 0.03), Quat(Eigen::AngleAxisd(0.7, Vec3(1, 0.3, 0).normalized()))};
+  for (const Shape& shape : {ball, finger}) {
+    const Pose X = shape.type == ShapeType::Sphere ? ball_at : finger_at;
+    std::vector<Contact> contacts;
+    world.contacts(shape, X, 3, 0.03, ContactParams{}, &contacts);
+    ASSERT_FALSE(contacts.empty());
+    for (const Contact& c : contacts) {
+      ASSERT_GE(c.triangle, 0);
+      Contact again;
+      ASSERT_TRUE(world.triangleContact(shape, X, c, &again));
+      EXPECT_EQ(again.key, c.key);
+      EXPECT_EQ(again.body, 3);
+      EXPECT_EQ(again.object, c.object);
+      EXPECT_NEAR(again.distance, bruteDistance(shape, X, c.triangle), 1e-7);
+      if (shape.type == ShapeType::Sphere) {
+        EXPECT_NEAR(again.distance, c.distance, 1e-12);
+        EXPECT_LE((again.n_W - c.n_W).norm(), 1e-9);
+        EXPECT_LE((again.p_W - c.p_W).norm(), 1e-9);
+      }
+      // Elsewhere: 7 mm aside, 2 mm lower and turned.
+      const Pose X2{X.p + Vec3(0.007, 0.005, -0.002), Quat(Eigen::AngleAxisd(0.3, Vec3::UnitY())) * X.q};
+      ASSERT_TRUE(world.triangleContact(shape, X2, c, &again));
+      EXPECT_NEAR(again.distance, bruteDistance(shape, X2, c.triangle), 1e-7);
+      // (A unit normal.)
+      EXPECT_NEAR(again.n_W.norm(), 1.0, 1e-12);
+    }
+  }
+  // Nothing to measure: no such object or triangle.
+  Contact bad;
+  bad.object = 5;
+  bad.triangle = 0;
+  Contact out;
+  EXPECT_FALSE(world.triangleContact(ball, at(0, 0, 0.1), bad, &out));
+  bad.object = 0;
+  bad.triangle = -1;
+  EXPECT_FALSE(world.triangleContact(ball, at(0, 0, 0.1), bad, &out));
+  bad.triangle = 1 << 30;
+  EXPECT_FALSE(world.triangleContact(ball, at(0, 0, 0.1), bad, &out));
+}
+
 // The same skin against a palm-like box coming down corner first: the grown box's corner reaches
 // √3 skin beyond the box's own corner, farther than the object's box grown by the skin. Stepped down
 // 1.5 mm, then 1 mm at a time, each step swept from where the last one stopped: the grown box never
