@@ -475,7 +475,9 @@ TEST(Plausibility, ACapsuleDraggedOverRidgesRidesOverThemWithinTheRound) {
   EXPECT_GT(res_on, 0u);
   EXPECT_LT(clipped_on, clipped_off) << "re-solved rounds should be clipped less often";
   EXPECT_LT(lag_on, 1e-3) << "the frictionless capsule should ride over the ridges at its target's x";
-  EXPECT_LE(lag_on, lag_off) << "riding over within the round should not trail more than stopping at each ridge";
+  // (Within 1 µm: since a body that hit keeps its hit's contacts into the next rounds, the run
+  // clipped at once rides the ridges it met as well; the two lags came out 0.6717 and 0.6714 mm.)
+  EXPECT_LE(lag_on, lag_off + 1e-6) << "riding over within the round should not trail more than stopping at each ridge";
 }
 
 // The whole 16-body hand: its index fingertip's target is pushed up into a crease (two plates
