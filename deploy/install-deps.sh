@@ -15,6 +15,7 @@ pkgs=(
   python3-matplotlib  # godhand-bench --sweep --plot (Debian's python3, /usr/bin/python3)
   libmujoco-dev  # godhand-bench --compare mujoco (deploy/run.sh compare) and its tests
   gdb  # where a service hangs: godhand-launch prints its threads' backtraces before it kills it
+  valgrind  # tests/programs/ab.py --instructions: before and after by callgrind's count
 )
 missing=()
 for p in "${pkgs[@]}"; do

@@ -2,7 +2,8 @@
 """Before and after in the same run: two builds of godhand-bench, alternated over the acceptance
 cases, on the same (shared, noisy) machine.
 
-    python3 tests/programs/ab.py [--rounds N] [--frames N] [--case NAME]... [--check-same-hash] A B
+    python3 tests/programs/ab.py [--rounds N] [--frames N] [--case NAME]... [--check-same-hash]
+                                 [--instructions] A B
 
 A and B are godhand-bench binaries or directories holding one (e.g. a copy of build/bin made
 before a change, and build/bin). Each round runs every case with A, then with B, so that a load
@@ -12,10 +13,18 @@ frozen windows, jitter) from the bench's own JSON report; then per case the spee
 rounds and each side's plausibility. The figures are the bench's, defined once in core/pipeline/run_metrics (nothing is
 recomputed here). --check-same-hash: exit 1 unless every case gave the same hash with A and B (a
 change meant to leave the results alone). A failed run is reported and makes the exit status 1.
+
+--instructions: also the instructions each side executes in its frames (valgrind's callgrind,
+counting only inside Pipeline::step, one thread: the same binary and input give the same count,
+whatever the load), once per case and side, with B's change against A: the figure that tells a
+few per cent apart on this shared machine, where the rates cannot. Slow (about 20x a run). With
+--rounds 0, only these.
 """
 import argparse
 import json
 import os
+import re
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -73,6 +82,21 @@ def run(bench, case, frames, extra):
     }
 
 
+def instructions(bench, case, frames, extra):
+    """Instructions inside Pipeline::step under callgrind, one thread; or {"error": ...}."""
+    with tempfile.TemporaryDirectory() as tmp:
+        cmd = ["valgrind", "--tool=callgrind", "--callgrind-out-file=" + os.path.join(tmp, "cg.out"),
+               "--toggle-collect=godhand::Pipeline::step(*", bench, *CASES[case], "--quiet", "--threads", "1", *extra]
+        if frames:
+            cmd += ["--frames", str(frames)]
+        proc = subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    m = re.search(r"Collected : (\d+)", proc.stderr)
+    if proc.returncode != 0 or not m:
+        last = proc.stderr.strip().splitlines()[-1:] or ["no output"]
+        return {"error": f"exit {proc.returncode}: {last[0]}"}
+    return {"ir": int(m.group(1))}
+
+
 def plausibility(res):
     return (f"excess lag p95 {res['lag_p95_mm']:.2f} mm, {res['lag_above']} frames > 5 mm, stuck {res['stuck']}, "
             f"frozen {res['frozen']}, jitter {res['jitter']} body-frames")
@@ -92,9 +116,13 @@ def main():
     ap.add_argument("--case", action="append", choices=sorted(CASES), help="a case (repeatable; default: all five)")
     ap.add_argument("--bench-arg", action="append", default=[], help="one more argument for both benches (repeatable)")
     ap.add_argument("--check-same-hash", action="store_true", help="exit 1 unless A and B give the same hashes")
+    ap.add_argument("--instructions", action="store_true",
+                    help="also each side's instructions in its frames (callgrind, one thread; slow)")
     args = ap.parse_args()
-    if args.rounds < 1:
-        fail("--rounds must be >= 1")
+    if args.rounds < 0 or (args.rounds == 0 and not args.instructions):
+        fail("--rounds must be >= 1 (0 only with --instructions)")
+    if args.instructions and not shutil.which("valgrind"):
+        fail("--instructions needs valgrind (Debian: apt install valgrind; deploy/install-deps.sh installs it)")
     if args.frames < 0:
         fail("--frames must be >= 0")
     benches = {"A": bench_path(args.a), "B": bench_path(args.b)}
@@ -112,6 +140,26 @@ def main():
                 results[(case, side)].append(res)
                 print(f"round {r} {side} {case}: {res['hz']:.0f} Hz, p99 {res['p99_ms']:.2f} ms, hash {res['hash']}, "
                       f"penetration {res['pen_mm']:.3f} mm, {plausibility(res)}", flush=True)
+    counts = {}
+    if args.instructions:
+        for case in cases:
+            for side, bench in benches.items():
+                res = instructions(bench, case, args.frames, args.bench_arg)
+                if "error" in res:
+                    failed = True
+                    print(f"instructions {side} {case}: FAILED ({res['error']})", flush=True)
+                    continue
+                counts[(case, side)] = res["ir"]
+                print(f"instructions {side} {case}: {res['ir']:,}", flush=True)
+        print("\ncase | A instructions | B instructions | B against A")
+        for case in cases:
+            a, b = counts.get((case, "A")), counts.get((case, "B"))
+            if a is None or b is None:
+                print(f"{case} | no count on both sides")
+                continue
+            print(f"{case} | {a:,} | {b:,} | {100.0 * (b - a) / a:+.1f} %")
+    if args.rounds == 0:
+        return 1 if failed else 0
     print("\ncase | A Hz | B Hz | A p99 ms | B p99 ms | hashes")
     differ = False
     for case in cases:
