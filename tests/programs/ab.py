@@ -97,6 +97,22 @@ def instructions(bench, case, frames, extra):
     return {"ir": int(m.group(1))}
 
 
+def measure_all(cases, benches, measure, label, describe):
+    """measure(bench, case) for every case and side, each printed as it comes (or its failure):
+    ({(case, side): result}, whether any failed)."""
+    got, failed = {}, False
+    for case in cases:
+        for side, bench in benches.items():
+            res = measure(bench, case)
+            if "error" in res:
+                failed = True
+                print(f"{label} {side} {case}: FAILED ({res['error']})", flush=True)
+                continue
+            got[(case, side)] = res
+            print(f"{label} {side} {case}: {describe(res)}", flush=True)
+    return got, failed
+
+
 def plausibility(res):
     return (f"excess lag p95 {res['lag_p95_mm']:.2f} mm, {res['lag_above']} frames > 5 mm, stuck {res['stuck']}, "
             f"frozen {res['frozen']}, jitter {res['jitter']} body-frames")
@@ -130,27 +146,18 @@ def main():
     results = {(c, s): [] for c in cases for s in benches}
     failed = False
     for r in range(1, args.rounds + 1):
-        for case in cases:
-            for side, bench in benches.items():
-                res = run(bench, case, args.frames, args.bench_arg)
-                if "error" in res:
-                    failed = True
-                    print(f"round {r} {side} {case}: FAILED ({res['error']})", flush=True)
-                    continue
-                results[(case, side)].append(res)
-                print(f"round {r} {side} {case}: {res['hz']:.0f} Hz, p99 {res['p99_ms']:.2f} ms, hash {res['hash']}, "
-                      f"penetration {res['pen_mm']:.3f} mm, {plausibility(res)}", flush=True)
+        got, bad = measure_all(cases, benches, lambda b, c: run(b, c, args.frames, args.bench_arg), f"round {r}",
+                               lambda res: f"{res['hz']:.0f} Hz, p99 {res['p99_ms']:.2f} ms, hash {res['hash']}, "
+                                           f"penetration {res['pen_mm']:.3f} mm, {plausibility(res)}")
+        failed = failed or bad
+        for key, res in got.items():
+            results[key].append(res)
     counts = {}
     if args.instructions:
-        for case in cases:
-            for side, bench in benches.items():
-                res = instructions(bench, case, args.frames, args.bench_arg)
-                if "error" in res:
-                    failed = True
-                    print(f"instructions {side} {case}: FAILED ({res['error']})", flush=True)
-                    continue
-                counts[(case, side)] = res["ir"]
-                print(f"instructions {side} {case}: {res['ir']:,}", flush=True)
+        got, bad = measure_all(cases, benches, lambda b, c: instructions(b, c, args.frames, args.bench_arg),
+                               "instructions", lambda res: f"{res['ir']:,}")
+        failed = failed or bad
+        counts = {key: res["ir"] for key, res in got.items()}
         print("\ncase | A instructions | B instructions | B against A")
         for case in cases:
             a, b = counts.get((case, "A")), counts.get((case, "B"))
