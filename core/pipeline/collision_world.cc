@@ -745,7 +745,8 @@ double deepestOnSegment(const Shape& shape, const Vec3& a, const Vec3& b, double
 }  // namespace
 
 CollisionWorld::Overlap CollisionWorld::overlapIn(const geo::MeshBvh& mesh, const Pose& X_WO, const Shape& shape,
-                                                  const Pose& X_WB, int origin_known) const {
+                                                  const Pose& X_WB, int origin_known,
+                                                  const geo::NearTriangle* nearest) const {
   Overlap best;
   const Pose X_OB = X_WO.inverse() * X_WB;
   const double r = geo::coreRadius(shape);
@@ -754,7 +755,8 @@ CollisionWorld::Overlap CollisionWorld::overlapIn(const geo::MeshBvh& mesh, cons
   geo::NearTriangle c;
   const bool origin_inside = origin_known >= 0 ? origin_known == 1 : in_box(X_OB.p) && mesh.inside(X_OB.p);
   if (!origin_inside) {
-    if (!mesh.closest(shape, X_OB, 0.0, &c)) return best;  // apart
+    if (nearest && !(nearest->closest.core_distance > 0.0)) c = *nearest;
+    else if (!mesh.closest(shape, X_OB, 0.0, &c)) return best;  // apart
     best.depth = std::max(0.0, -c.closest.distance);       // the rounded shell's overlap
     best.n_W = X_WO.q * c.closest.n;
     if (c.closest.core_distance > 0.0) return best;         // the cores do not cross
@@ -908,9 +910,28 @@ double CollisionWorld::signedDistance(int object, const Shape& body_shape, const
     }
   }
   // The cores cross: the depth of the deepest witness (overlapIn), not the 0 of crossing cores.
-  const Overlap ov = overlapIn(*o.god, o.X_WO, shape, X_WB, origin_inside ? 1 : 0);
+  const Overlap ov = overlapIn(*o.god, o.X_WO, shape, X_WB, origin_inside ? 1 : 0, origin_inside ? nullptr : &c);
   if (n_W) *n_W = ov.n_W;
   return -ov.depth;
+}
+
+bool CollisionWorld::closerThan(int object, const Shape& body_shape, const Pose& X_WB, double range) const {
+  if (!(range > 0.0)) return signedDistance(object, body_shape, X_WB, range, nullptr) < range;
+  const Object& o = objects_[static_cast<size_t>(object)];
+  if (!o.god) return false;
+  const Shape shape = grown(body_shape, o.skin);
+  // signedDistance's steps up to where its answer is known to be below the range: an origin inside
+  // (−depth ≤ 0) or crossing cores (the same), else the distance itself.
+  if (!o.box_W.overlaps(geo::shapeAabb(shape, X_WB).inflated(range))) return false;
+  CostClock clock(*this);
+  const Charge charge(clock, static_cast<size_t>(object));
+  const Pose X_OB = o.X_WO.inverse() * X_WB;
+  const geo::Aabb& gb = o.god->bounds();
+  const bool in_box = (X_OB.p.array() >= gb.lo.array()).all() && (X_OB.p.array() <= gb.hi.array()).all();
+  if (in_box && o.god->inside(X_OB.p)) return true;
+  geo::NearTriangle c;
+  if (!o.god->closest(shape, X_OB, range, &c)) return false;
+  return !(c.closest.core_distance > 0.0) || c.closest.distance < range;
 }
 
 double CollisionWorld::clearance(const Shape& body_shape, const Pose& X_WB, double range) const {

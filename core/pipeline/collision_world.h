@@ -133,6 +133,9 @@ class CollisionWorld {
   /// Signed distance (m, inside ⇒ < 0) of the shape to one object's God mesh within `range`
   /// (+inf beyond), and the unit normal from the object towards the shape (world).
   double signedDistance(int object, const Shape& shape, const Pose& X_WB, double range, Vec3* n_W) const;
+  /// signedDistance(object, shape, X_WB, range, ·) < range, without measuring how deep an
+  /// overlap is (range > 0: any overlap is closer).
+  bool closerThan(int object, const Shape& shape, const Pose& X_WB, double range) const;
 
  private:
   struct Object;
@@ -143,9 +146,12 @@ class CollisionWorld {
     Vec3 n_W = Vec3::UnitZ();
   };
   /// origin_known: 1 / 0 when the caller already knows whether the body's origin is inside the
-  /// mesh (its winding number), −1 to have it computed here.
+  /// mesh (its winding number), −1 to have it computed here. `nearest` (origin outside only): the
+  /// caller's own closest(shape, X_OB, range) answer, found within some range ≥ 0 with the cores
+  /// crossing; the same triangle and points as this function's own query within 0 (the least
+  /// distance is below both ranges), so that query is not made a second time.
   Overlap overlapIn(const geo::MeshBvh& mesh, const Pose& X_WO, const Shape& shape, const Pose& X_WB,
-                    int origin_known = -1) const;
+                    int origin_known = -1, const geo::NearTriangle* nearest = nullptr) const;
   /// Exact depth (≥ 0, m) of the shape in one object's reference mesh.
   double depthIn(const Object& o, const Shape& shape, const Pose& X_WB) const;
   /// A motion of a body that starts inside `o` ends, or passes a quarter point, deeper in it.

@@ -219,6 +219,16 @@ bool HandSolver::freeStart(std::vector<Pose>* X, Vec3* shift) const {
     }
     return need;
   };
+  // worst(offset) > 0, stopping at the first body closer than `want` to anything (no depths).
+  auto occupied = [&](const Vec3& offset) {
+    for (size_t b = 0; b < n; ++b) {
+      Pose Xb = (*X)[b];
+      Xb.p += offset;
+      for (int o = 0; o < collision_.objectCount(); ++o)
+        if (collision_.closerThan(o, model_.bodies[b].shape, Xb, want)) return true;
+    }
+    return false;
+  };
   Vec3 offset = Vec3::Zero(), n_W = Vec3::UnitZ();
   bool pushed = false;
   for (int it = 0; it < kStartPushes; ++it) {
@@ -238,18 +248,17 @@ bool HandSolver::freeStart(std::vector<Pose>* X, Vec3* shift) const {
   // twice as high (seen: 16 cm above a hand that was free at 9 cm). Heights at or above the
   // pushes' distance are not searched: that one is kept.
   const double limit = pushed ? offset.norm() : params_.max_start_shift;
-  double occupied = 0.0;
-  for (double h = 0.01; h < 2.0 * limit && occupied < limit; h *= 2.0) {
-    Vec3 unused;
+  double occupied_at = 0.0;  // the highest height found occupied
+  for (double h = 0.01; h < 2.0 * limit && occupied_at < limit; h *= 2.0) {
     const double at = std::min(h, limit);
-    if (worst(Vec3(0, 0, at), &unused) > 0.0) {
-      occupied = at;
+    if (occupied(Vec3(0, 0, at))) {
+      occupied_at = at;
       continue;
     }
     double free = at;
-    while (free - occupied > 1e-3) {
-      const double mid = 0.5 * (occupied + free);
-      (worst(Vec3(0, 0, mid), &unused) <= 0.0 ? free : occupied) = mid;
+    while (free - occupied_at > 1e-3) {
+      const double mid = 0.5 * (occupied_at + free);
+      (occupied(Vec3(0, 0, mid)) ? occupied_at : free) = mid;
     }
     if (pushed && !(free < limit)) break;
     *shift = Vec3(0, 0, free);

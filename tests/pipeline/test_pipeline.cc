@@ -19,6 +19,7 @@
 #include "scene/scene.h"
 #include "box_scene.h"
 #include "probe_model.h"
+#include "../test_rng.h"
 
 namespace godhand {
 namespace {
@@ -433,6 +434,43 @@ TEST(Pipeline, PenetrationSeesAnObjectEdgeOrCornerInsideTheBody) {
     X_up.p.z() -= depth + 1e-6;
     EXPECT_EQ(world.penetration(palm, X_up), 0.0) << c.name;
   }
+}
+
+// closerThan is signedDistance(...) < range without the overlap's depth (the start search asks
+// only whether a hand is free): the same answer, against signedDistance itself, for a sphere, a
+// capsule and a box at random poses around, across and inside a block with and without a skin
+// (apart, shells overlapping, cores crossing, origin inside), at two ranges.
+TEST(Pipeline, CloserThanAnswersAsTheSignedDistanceDoes) {
+  Shape shapes[3];
+  shapes[0].type = ShapeType::Sphere;
+  shapes[0].radius = 0.008;
+  shapes[1].type = ShapeType::Capsule;
+  shapes[1].radius = 0.007;
+  shapes[1].half_length = 0.015;
+  shapes[2].type = ShapeType::Box;
+  shapes[2].half_extents = Vec3(0.04, 0.04, 0.01);
+  test_support::Rng rng(31);
+  int inside = 0, near = 0, apart = 0;
+  for (double skin : {0.0, 0.003}) {
+    SceneObject block = boxObject("block", Vec3(0.03, 0.02, 0.025), at(0.01, -0.02, 0.005), 0.0);
+    block.god_skin = skin;
+    const Scene scene = sceneOf({block});
+    const CollisionWorld world(scene);
+    for (int k = 0; k < 600; ++k) {
+      const Shape& shape = shapes[k % 3];
+      const Pose X{Vec3(0.01, -0.02, 0.005) + rng.vec(0.07), rng.rotation()};
+      for (double range : {1e-4, 4e-3}) {
+        Vec3 n;
+        const double d = world.signedDistance(0, shape, X, range, &n);
+        EXPECT_EQ(world.closerThan(0, shape, X, range), d < range) << "pose " << k << " range " << range << " d " << d;
+        (d < 0.0 ? inside : d < range ? near : apart) += 1;
+      }
+    }
+  }
+  // Every kind of answer was asked for.
+  EXPECT_GT(inside, 100);
+  EXPECT_GT(near, 10);
+  EXPECT_GT(apart, 100);
 }
 
 // An object with a God-side skin (fidelity AUTO: the full surface may lie that far outside its
