@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 namespace godhand {
 namespace {
@@ -122,6 +123,52 @@ bool TreeSolver::structure(const QpProblem& p) {
   // r − 3 lock rows [0  L]. Its free motions are ω ∈ null(L) with v = −S ω (B = [−S W; W], W an
   // orthonormal basis of null(L)), and one particular solution of J_C z = v is
   // ω = Lᵀ (L Lᵀ)⁻¹ v_lock, v = v_point − S ω (P below, z = P v). Other blocks: not a joint's.
+  // The maps of a group of nl = 1 or 2 lock rows (a two-axis and a one-axis joint: every joint
+  // of the hand models) with fixed-size matrices; the same arithmetic as the general code below.
+  auto fixedMaps = [&](auto nl_c, Group& g) -> bool {
+    constexpr int NL = decltype(nl_c)::value;
+    constexpr int R = 3 + NL, F = 3 - NL;
+    const Eigen::Matrix<double, NL, 3> L = g.L.template topRows<NL>();
+    using Small = Eigen::Matrix<double, NL, NL>;
+    const Small LLt = g.L.template topRows<NL>() * g.L.template topRows<NL>().transpose();
+    const Eigen::LDLT<Small> f(LLt);
+    const double scale = LLt.diagonal().maxCoeff();
+    if (!(scale > 0.0) || f.vectorD().minCoeff() <= kRankFloor * scale) return false;
+    const Eigen::Matrix<double, NL, NL> G = f.solve(Small::Identity());
+    g.G.setZero();
+    g.G.template topLeftCorner<NL, NL>() = G;
+    Eigen::Matrix<double, 3, F> W;
+    if constexpr (NL == 1) {
+      const Vec3 l = g.L.row(0).transpose().normalized();
+      const Vec3 a = std::abs(l.x()) < 0.6 ? Vec3::UnitX() : (std::abs(l.y()) < 0.6 ? Vec3::UnitY() : Vec3::UnitZ());
+      const Vec3 w0 = l.cross(a).normalized();
+      W.col(0) = w0;
+      W.col(1) = l.cross(w0);
+    } else {
+      const Vec3 w = g.L.row(0).transpose().cross(g.L.row(1).transpose());
+      if (!(w.norm() > 0.0)) return false;
+      W.col(0) = w.normalized();
+    }
+    g.B.setZero();
+    g.B.template topLeftCorner<3, F>() = -g.S * W;
+    g.B.template bottomLeftCorner<3, F>() = W;
+    Eigen::Matrix<double, 6, R> P = Eigen::Matrix<double, 6, R>::Zero();
+    P.template topLeftCorner<3, 3>().setIdentity();
+    const Eigen::Matrix<double, 3, NL> LtG = L.transpose() * G;
+    P.template block<3, NL>(0, 3) = -g.S * LtG;
+    P.template block<3, NL>(3, 3) = LtG;
+    Eigen::Matrix<double, R, 6> JP;
+    Eigen::Matrix<double, R, 1> c;
+    for (int i = 0; i < R; ++i) {
+      const Row& row = p.row(g.first + i);
+      if (g.parent >= 0) JP.row(i) = row.J1.transpose();
+      else JP.row(i).setZero();
+      c[i] = row.c;
+    }
+    g.T = -P * JP;
+    g.q = P * c;
+    return true;
+  };
   for (Group& g : groups_) {
     if (g.rows < 3) return false;
     for (int i = 0; i < g.rows; ++i) {
@@ -133,6 +180,11 @@ bool TreeSolver::structure(const QpProblem& p) {
     const int nl = g.rows - 3;
     g.L.setZero();
     for (int i = 0; i < nl; ++i) g.L.row(i) = p.row(g.first + 3 + i).J0.tail<3>().transpose();
+    if (nl == 1 || nl == 2) {
+      if (!(nl == 1 ? fixedMaps(std::integral_constant<int, 1>{}, g) : fixedMaps(std::integral_constant<int, 2>{}, g)))
+        return false;
+      continue;
+    }
     g.G.setZero();
     Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 3> W(3, 3 - nl);
     if (nl > 0) {
