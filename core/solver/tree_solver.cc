@@ -123,6 +123,15 @@ bool TreeSolver::structure(const QpProblem& p) {
   // r − 3 lock rows [0  L]. Its free motions are ω ∈ null(L) with v = −S ω (B = [−S W; W], W an
   // orthonormal basis of null(L)), and one particular solution of J_C z = v is
   // ω = Lᵀ (L Lᵀ)⁻¹ v_lock, v = v_point − S ω (P below, z = P v). Other blocks: not a joint's.
+  // A group's rows: their parent blocks (zero for a root's child) and right-hand sides.
+  auto parentRows = [&](const Group& g, auto* JP, auto* c) {
+    for (int i = 0; i < g.rows; ++i) {
+      const Row& row = p.row(g.first + i);
+      if (g.parent >= 0) JP->row(i) = row.J1.transpose();
+      else JP->row(i).setZero();
+      (*c)[i] = row.c;
+    }
+  };
   // The maps of a group of nl = 1 or 2 lock rows (a two-axis and a one-axis joint: every joint
   // of the hand models) with fixed-size matrices; the same arithmetic as the general code below.
   auto fixedMaps = [&](auto nl_c, Group& g) -> bool {
@@ -159,12 +168,7 @@ bool TreeSolver::structure(const QpProblem& p) {
     P.template block<3, NL>(3, 3) = LtG;
     Eigen::Matrix<double, R, 6> JP;
     Eigen::Matrix<double, R, 1> c;
-    for (int i = 0; i < R; ++i) {
-      const Row& row = p.row(g.first + i);
-      if (g.parent >= 0) JP.row(i) = row.J1.transpose();
-      else JP.row(i).setZero();
-      c[i] = row.c;
-    }
+    parentRows(g, &JP, &c);
     g.T = -P * JP;
     g.q = P * c;
     return true;
@@ -225,12 +229,7 @@ bool TreeSolver::structure(const QpProblem& p) {
     }
     Eigen::Matrix<double, Eigen::Dynamic, 6, 0, 6, 6> JP(g.rows, 6);
     Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 6, 1> c(g.rows);
-    for (int i = 0; i < g.rows; ++i) {
-      const Row& row = p.row(g.first + i);
-      if (g.parent >= 0) JP.row(i) = row.J1.transpose();
-      else JP.row(i).setZero();
-      c[i] = row.c;
-    }
+    parentRows(g, &JP, &c);
     g.T = -P * JP;
     g.q = P * c;
   }
