@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -42,7 +43,9 @@ int connectFrom(const char* from, int port) {
     ::close(fd);
     return -1;
   }
-  timeval tv{5, 0};  // a read never waits longer than this
+  // A read never waits longer than this: long enough for a server under a sanitizer on a loaded
+  // machine (it failed there at 5 s: the server was still writing the hogs' 32 MB responses).
+  timeval tv{30, 0};
   ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
   return fd;
 }
@@ -52,7 +55,7 @@ bool request(int fd, const std::string& path) {
   return ::send(fd, r.data(), r.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(r.size());
 }
 
-/// The status code of one request from `from` ("" when there is no answer within 5 s).
+/// The status code of one request from `from` ("" when there is no answer within 30 s).
 std::string statusFrom(const char* from, int port, const std::string& path) {
   const int fd = connectFrom(from, port);
   if (fd < 0) return "no connection";
@@ -68,6 +71,16 @@ std::string statusFrom(const char* from, int port, const std::string& path) {
   ::close(fd);
   const size_t sp = head.find(' ');
   return sp == std::string::npos ? "" : head.substr(sp + 1, 3);
+}
+
+/// Waits (at most 30 s) until the server has taken `n` HTTP requests; false if it has not.
+bool requestsTaken(const Server& server, std::uint64_t n) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (server.httpRequests() < n) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return true;
 }
 
 TEST(ViewerServer, ClientsThatNeverReadHoldOnlyTheirAddresssShareOfTheHttpSlots) {
@@ -91,7 +104,8 @@ TEST(ViewerServer, ClientsThatNeverReadHoldOnlyTheirAddresssShareOfTheHttpSlots)
     ASSERT_TRUE(request(fd, "/big"));
     hogs.push_back(fd);
   }
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // the server has answered them all
+  // The server has taken every hog's request (each then holds its slot until its client reads).
+  ASSERT_TRUE(requestsTaken(server, 1 + static_cast<std::uint64_t>(Server::kMaxHttpPerAddress)));
   EXPECT_EQ(statusFrom("127.0.0.1", port, "/index.html"), "503") << "one address holds at most its share";
   EXPECT_EQ(statusFrom("127.0.0.2", port, "/index.html"), "200") << "another address is served meanwhile";
   // Two more addresses of hogs fill the server's 16 slots: then everyone waits.
@@ -103,14 +117,15 @@ TEST(ViewerServer, ClientsThatNeverReadHoldOnlyTheirAddresssShareOfTheHttpSlots)
       ASSERT_TRUE(request(fd, "/big"));
       more.push_back(fd);
     }
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_TRUE(requestsTaken(server, 3 + 3 * static_cast<std::uint64_t>(Server::kMaxHttpPerAddress)));
   EXPECT_EQ(statusFrom("127.0.0.5", port, "/index.html"), "503") << Server::kMaxHttpInFlight << " slots in all";
   EXPECT_GE(server.httpRefused(), 3u);
   for (int fd : hogs) ::close(fd);
   for (int fd : more) ::close(fd);
   // Gone clients free their slots.
   std::string after;
-  for (int tries = 0; tries < 50 && after != "200"; ++tries) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (after != "200" && std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     after = statusFrom("127.0.0.1", port, "/index.html");
   }
