@@ -133,7 +133,8 @@ bool TreeSolver::structure(const QpProblem& p) {
     }
   };
   // The maps of a group of nl = 1 or 2 lock rows (a two-axis and a one-axis joint: every joint
-  // of the hand models) with fixed-size matrices; the same arithmetic as the general code below.
+  // of the hand models) with fixed-size matrices, in the general code's order of arithmetic (the
+  // results equal to the bit: a lock row's norm is taken from g.L's strided row, as it was).
   auto fixedMaps = [&](auto nl_c, Group& g) -> bool {
     constexpr int NL = decltype(nl_c)::value;
     constexpr int R = 3 + NL, F = 3 - NL;
@@ -199,19 +200,8 @@ bool TreeSolver::structure(const QpProblem& p) {
       if (!(scale > 0.0) || f.vectorD().minCoeff() <= kRankFloor * scale) return false;
       g.G.topLeftCorner(nl, nl) = f.solve(Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3, 3>::Identity(nl, nl));
     }
-    if (nl == 0) {
-      W.setIdentity();
-    } else if (nl == 1) {
-      const Vec3 l = g.L.row(0).transpose().normalized();
-      const Vec3 a = std::abs(l.x()) < 0.6 ? Vec3::UnitX() : (std::abs(l.y()) < 0.6 ? Vec3::UnitY() : Vec3::UnitZ());
-      const Vec3 w0 = l.cross(a).normalized();
-      W.col(0) = w0;
-      W.col(1) = l.cross(w0);
-    } else if (nl == 2) {
-      const Vec3 w = g.L.row(0).transpose().cross(g.L.row(1).transpose());
-      if (!(w.norm() > 0.0)) return false;
-      W.col(0) = w.normalized();
-    }
+    // (Here nl is 0, a point joint, or 3, a weld: one or two lock rows took fixedMaps above.)
+    if (nl == 0) W.setIdentity();
     const int free = 3 - nl;
     g.B.setZero();
     if (free > 0) {

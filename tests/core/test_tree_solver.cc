@@ -7,7 +7,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <fstream>
 #include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -33,7 +35,7 @@ struct Problem {
 /// The pipeline's problem at a perturbed pose of the hand: masses, joint rows, limit rows and
 /// `contacts` random contact rows (bodies, points near them, normals, distances from 1 mm inside
 /// to 2 mm outside), z_u a random pull of the given size.
-void makeProblem(std::mt19937_64& rng, int contacts, double pull, Problem* out) {
+void makeProblem(std::mt19937_64& rng, int contacts, double pull, Problem* out, const HandModel& m = hand()) {
   std::normal_distribution<double> n01(0.0, 1.0);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   // x, then y, then z: Vec3(n01(rng), n01(rng), n01(rng)) leaves the order of the draws to the
@@ -44,7 +46,6 @@ void makeProblem(std::mt19937_64& rng, int contacts, double pull, Problem* out) 
     const double z = n01(rng);
     return Vec3(x, y, z);
   };
-  const HandModel& m = hand();
   const int nb = static_cast<int>(m.bodies.size());
   out->X = m.restPoses(Pose{});
   for (Pose& x : out->X) {  // joints opened by up to ~0.1 mm and turned by up to ~0.05 rad
@@ -160,6 +161,54 @@ TEST(TreeSolver, HandProblemsMatchTheGeneralSolver) {
               "converged alone on %d); z differs from the general solver's by %.2g (relative), dense KKT %.2g\n",
               answered, trials, general_short, tree_alone, worst_z, worst_kkt);
   EXPECT_GE(answered, trials * 9 / 10);
+}
+
+/// The hand with its thumb's and index finger's last joints welded (FIXED: six rows, no free
+/// direction): the groups of three lock rows, which take the general maps (one and two lock rows
+/// take the fixed-size ones).
+HandModel weldedHand() {
+  std::ifstream in(std::string(GODHAND_MODELS_DIR) + "/hand16_right.pbtxt");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  std::string text = ss.str();
+  for (const std::string name : {"thumb.ip", "index.dip"}) {
+    const std::string from = "name: \"" + name + "\" type: REVOLUTE";
+    const size_t at = text.find(from);
+    if (at == std::string::npos) throw std::runtime_error("no joint " + name);
+    text.replace(at, from.size(), "name: \"" + name + "\" type: FIXED");
+    const size_t lim = text.find("  limits {", at), end = text.find('\n', lim);
+    text.erase(lim, end + 1 - lim);  // a FIXED joint has no angles to limit
+  }
+  return HandModel::fromText(text, "hand16_right.pbtxt, two joints welded");
+}
+
+TEST(TreeSolver, WeldedJointsMatchTheGeneralSolver) {
+  const HandModel m = weldedHand();
+  std::mt19937_64 rng(20261207);
+  TreeSolver tree;
+  ActiveSetSolver general;
+  Problem pr;
+  int compared = 0;
+  for (int contacts : {0, 6, 20})
+    for (int t = 0; t < 10; ++t) {
+      makeProblem(rng, contacts, 1e-2, &pr, m);
+      QpSolution a, b;
+      general.reserve(pr.qp.numBodies(), pr.qp.numRows());
+      const SolveStats sa = general.solve(pr.qp, a);
+      SolveStats sb;
+      ASSERT_TRUE(tree.solve(pr.qp, b, nullptr, &sb)) << "contacts " << contacts << " trial " << t;
+      EXPECT_EQ(tree.coordinates(), 24);  // 26 less the two welded joints' one angle each
+      EXPECT_LE(denseKkt(pr.qp, b), 1e-8) << "contacts " << contacts << " trial " << t;
+      if (sa.status != SolveStatus::Converged) continue;
+      ++compared;
+      double zmax = 1e-300, dz = 0.0;
+      for (int k = 0; k < pr.qp.numBodies(); ++k) {
+        zmax = std::max(zmax, a.z[static_cast<size_t>(k)].cwiseAbs().maxCoeff());
+        dz = std::max(dz, (a.z[static_cast<size_t>(k)] - b.z[static_cast<size_t>(k)]).cwiseAbs().maxCoeff());
+      }
+      EXPECT_LE(dz / zmax, 1e-7) << "contacts " << contacts << " trial " << t;
+    }
+  EXPECT_GE(compared, 20);
 }
 
 TEST(TreeSolver, WarmStartGivesTheSameSolution) {
