@@ -664,7 +664,8 @@ struct MeshBvh::Impl {
 
   template <ShapeType kType>
   static double advancementStep(const MeshBvh& bvh, const Shape& shape, const Pose& X_MB, const Vec3& dp_M,
-                                const Vec3& theta_M, double eta, double horizon, NearTriangle* limiting, int hint) {
+                                const Vec3& theta_M, double eta, double horizon, NearTriangle* limiting, int hint,
+                                AdvanceFront* front) {
     limiting->triangle = -1;
     if (bvh.nodes_.empty() || !(horizon > 0.0)) return std::max(0.0, horizon);
     const double r = coreRadius(shape), rho_c = coreBoundingRadius(shape);
@@ -751,7 +752,7 @@ struct MeshBvh::Impl {
       return t;
     };
     // Exact time bound of one triangle (corners in M); updates the best.
-    auto visitTriangle = [&](int i, const std::array<Vec3, 3>& v) {
+    auto visitTriangle = [&](int i, const std::array<Vec3, 3>& v) -> double {
       const std::array<Vec3, 3> abc_B = {R_BM * (v[0] - X_MB.p), R_BM * (v[1] - X_MB.p), R_BM * (v[2] - X_MB.p)};
       Vec3 core_B, tri_B;
       const double d_core = detail::coreTriangle(shape, abc_B[0], abc_B[1], abc_B[2], &core_B, &tri_B);
@@ -783,118 +784,165 @@ struct MeshBvh::Impl {
         best_abc_B = abc_B;
         best_d = d_core;
       }
+      return t_i;
     };
     // The traversal skips the hint's position: visited again there it would give the same time
     // (its bounds refined at least as far, the best being at most the hint's time), which cannot
     // replace the best.
     int hint_at = -1;
+    double hint_t = std::numeric_limits<double>::infinity();
+    std::vector<int>* next = front ? &front->next : nullptr;
+    auto keep = [&](int item, double t) {
+      if (next && t < horizon) next->push_back(item);
+    };
     if (hint >= 0 && hint < bvh.mesh_.triangleCount()) {
       hint_at = bvh.position_[static_cast<size_t>(hint)];
-      visitTriangle(hint_at, bvh.tri_vertices_[static_cast<size_t>(hint_at)]);
+      hint_t = visitTriangle(hint_at, bvh.tri_vertices_[static_cast<size_t>(hint_at)]);
     }
+    // One triangle (its position i): its bounds cheapest first, its visit where none reaches the
+    // best; returns the bound that settled it (a lower bound of its time).
+    auto leafTriangle = [&](int i) -> double {
+      // A triangle is visited only where none of its bounds reaches the best; they are taken
+      // cheapest and most often pruning first: the box gap, the first-order bound along the
+      // centroid's direction, then the box's directional one (boxTime's second part), then the
+      // centroid direction's second-order and body-axis ones.
+      const Aabb& tri_box = bvh.tri_boxes_[static_cast<size_t>(i)];
+      {
+        const double tg = gapTime(tri_box);
+        if (tg >= best) return tg;
+      }
+      const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
+      // f(c) + min_k u·(v_k − c), u the core distance's gradient at the centroid c, is the
+      // separation of core and triangle along the fixed direction u (u is the core's outward
+      // normal at the point nearest c), so every bound of visitTriangle holds along it too:
+      // the first-order one, then (where that does not settle it) the second-order and the
+      // body-axis ones, which see a turning body's far end recede. Only where the shape is
+      // more than η clear along u (a smaller separation says nothing: the triangle is visited).
+      Vec3 u;
+      double sep;
+      const bool along_u = core.triangleBound(v, bvh.tri_centroids_[static_cast<size_t>(i)], &u, &sep) > 0.0;
+      const double margin = sep - r - eta;
+      double t_u = 0.0;  // a separation within r + η: time 0
+      if (along_u && !(margin <= 0.0)) {
+        const double rate = u.dot(dp_M) + rho_c * u.cross(theta_M).norm();
+        t_u = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
+      }
+      if (along_u && t_u >= best) return t_u;
+      {
+        const double td = directionalTime(tri_box);
+        if (td >= best) return td;
+      }
+      if (along_u && !(margin <= 0.0)) {
+        const Direction dir(u, motion);
+        double support = 0.0;
+        if (t_u < best && margin > 0.0 && n_axes > 0)
+          t_u = std::max(t_u, secondOrderTime<kAxes>(margin, u, dir, motion, horizon, &support));
+        if (t_u < best && margin > 0.0 && motion.turning)
+          t_u = std::max(t_u, bodyAxisTime(v.data(), 3, X_MB.p, u, dir, support, r + eta, motion, 0.0));
+        if (t_u >= best) return t_u;
+      }
+      return visitTriangle(i, v);
+    };
     int stack[kStackSize];
     double stack_t[kStackSize];
     int sp = 0;
-    stack[sp] = 0;
-    stack_t[sp++] = boxTime(bvh.nodes_[0].box, best);
-    while (sp > 0) {
-      --sp;
-      if (stack_t[sp] >= best) continue;
-      const Node& node = bvh.nodes_[static_cast<size_t>(stack[sp])];
-      if (node.count > 0) {
-        for (int i = node.first; i < node.first + node.count; ++i) {
-          if (i == hint_at) continue;
-          // A triangle is visited only where none of its bounds reaches the best; they are taken
-          // cheapest and most often pruning first: the box gap, the first-order bound along the
-          // centroid's direction, then the box's directional one (boxTime's second part), then the
-          // centroid direction's second-order and body-axis ones.
-          const Aabb& tri_box = bvh.tri_boxes_[static_cast<size_t>(i)];
-          if (gapTime(tri_box) >= best) continue;
-          const auto& v = bvh.tri_vertices_[static_cast<size_t>(i)];
-          // f(c) + min_k u·(v_k − c), u the core distance's gradient at the centroid c, is the
-          // separation of core and triangle along the fixed direction u (u is the core's outward
-          // normal at the point nearest c), so every bound of visitTriangle holds along it too:
-          // the first-order one, then (where that does not settle it) the second-order and the
-          // body-axis ones, which see a turning body's far end recede. Only where the shape is
-          // more than η clear along u (a smaller separation says nothing: the triangle is visited).
-          Vec3 u;
-          double sep;
-          const bool along_u = core.triangleBound(v, bvh.tri_centroids_[static_cast<size_t>(i)], &u, &sep) > 0.0;
-          const double margin = sep - r - eta;
-          double t_u = 0.0;  // a separation within r + η: time 0
-          if (along_u && !(margin <= 0.0)) {
-            const double rate = u.dot(dp_M) + rho_c * u.cross(theta_M).norm();
-            t_u = rate > 0.0 ? margin / rate : std::numeric_limits<double>::infinity();
-          }
-          if (along_u && t_u >= best) continue;
-          if (directionalTime(tri_box) >= best) continue;
-          if (along_u && !(margin <= 0.0)) {
-            const Direction dir(u, motion);
-            double support = 0.0;
-            if (t_u < best && margin > 0.0 && n_axes > 0)
-              t_u = std::max(t_u, secondOrderTime<kAxes>(margin, u, dir, motion, horizon, &support));
-            if (t_u < best && margin > 0.0 && motion.turning)
-              t_u = std::max(t_u, bodyAxisTime(v.data(), 3, X_MB.p, u, dir, support, r + eta, motion, 0.0));
-            if (t_u >= best) continue;
-          }
-          visitTriangle(i, v);
+    // Depth first from what is on the stack, the nearer child on top; what is not taken goes to
+    // the front when it is not certified for the rest of the motion.
+    auto run = [&]() {
+      while (sp > 0) {
+        --sp;
+        if (stack_t[sp] >= best) {
+          keep(stack[sp], stack_t[sp]);
+          continue;
         }
-        continue;
-      }
-#if defined(__SSE2__)
-      // Both children at once; each lane as boxTime(box, best).
-      double t_left, t_right;
-      {
-        const BoxPair pair_box(bvh.nodes_[static_cast<size_t>(node.first)].box, bvh.nodes_[static_cast<size_t>(node.right)].box);
-        const Lanes gap = gapBound2(core, pair_box);
-        double t[2];
-        const double g[2] = {lane0(gap), lane1(gap)};
-        for (int k = 0; k < 2; ++k) {
-          const double margin_gap = g[k] - r - eta;
-          t[k] = 0.0;
-          if (margin_gap > 0.0) t[k] = mu_c > 0.0 ? margin_gap / mu_c : std::numeric_limits<double>::infinity();
+        const Node& node = bvh.nodes_[static_cast<size_t>(stack[sp])];
+        if (node.count > 0) {
+          for (int i = node.first; i < node.first + node.count; ++i) {
+            if (i == hint_at) continue;
+            keep(-(i + 1), leafTriangle(i));
+          }
+          continue;
         }
-        if (t[0] < best || t[1] < best) {
-          Lanes3 u;
-          Lanes sep;
-          const Lanes f = centreBound2<kType>(core, pair_box, &u, &sep);
-          const Lanes margin = sep - splat(r) - splat(eta);
-          const Lanes cx = u.y * splat(theta_M.z()) - u.z * splat(theta_M.y());
-          const Lanes cy = u.z * splat(theta_M.x()) - u.x * splat(theta_M.z());
-          const Lanes cz = u.x * splat(theta_M.y()) - u.y * splat(theta_M.x());
-          const Lanes turn = splat(rho_c) * lsqrt(cx * cx + cy * cy + cz * cz);
-          const Lanes rate = dot(u, dp_M) + turn;
-          const Lanes q = margin / rate;
-          const double fs[2] = {lane0(f), lane1(f)}, ms[2] = {lane0(margin), lane1(margin)};
-          const double rs[2] = {lane0(rate), lane1(rate)}, qs[2] = {lane0(q), lane1(q)};
-          const double ts[2] = {lane0(turn), lane1(turn)};
+  #if defined(__SSE2__)
+        // Both children at once; each lane as boxTime(box, best).
+        double t_left, t_right;
+        {
+          const BoxPair pair_box(bvh.nodes_[static_cast<size_t>(node.first)].box, bvh.nodes_[static_cast<size_t>(node.right)].box);
+          const Lanes gap = gapBound2(core, pair_box);
+          double t[2];
+          const double g[2] = {lane0(gap), lane1(gap)};
           for (int k = 0; k < 2; ++k) {
-            if (t[k] >= best || fs[k] <= 0.0 || ms[k] <= 0.0) continue;
-            t[k] = std::max(t[k], rs[k] > 0.0 ? qs[k] : std::numeric_limits<double>::infinity());
-            if (t[k] < best && ts[k] > kTurnShare * rs[k])
-              t[k] = refineNode(k == 0 ? node.first : node.right, Vec3(lane0or1(u.x, k), lane0or1(u.y, k), lane0or1(u.z, k)), ms[k], t[k]);
+            const double margin_gap = g[k] - r - eta;
+            t[k] = 0.0;
+            if (margin_gap > 0.0) t[k] = mu_c > 0.0 ? margin_gap / mu_c : std::numeric_limits<double>::infinity();
           }
+          if (t[0] < best || t[1] < best) {
+            Lanes3 u;
+            Lanes sep;
+            const Lanes f = centreBound2<kType>(core, pair_box, &u, &sep);
+            const Lanes margin = sep - splat(r) - splat(eta);
+            const Lanes cx = u.y * splat(theta_M.z()) - u.z * splat(theta_M.y());
+            const Lanes cy = u.z * splat(theta_M.x()) - u.x * splat(theta_M.z());
+            const Lanes cz = u.x * splat(theta_M.y()) - u.y * splat(theta_M.x());
+            const Lanes turn = splat(rho_c) * lsqrt(cx * cx + cy * cy + cz * cz);
+            const Lanes rate = dot(u, dp_M) + turn;
+            const Lanes q = margin / rate;
+            const double fs[2] = {lane0(f), lane1(f)}, ms[2] = {lane0(margin), lane1(margin)};
+            const double rs[2] = {lane0(rate), lane1(rate)}, qs[2] = {lane0(q), lane1(q)};
+            const double ts[2] = {lane0(turn), lane1(turn)};
+            for (int k = 0; k < 2; ++k) {
+              if (t[k] >= best || fs[k] <= 0.0 || ms[k] <= 0.0) continue;
+              t[k] = std::max(t[k], rs[k] > 0.0 ? qs[k] : std::numeric_limits<double>::infinity());
+              if (t[k] < best && ts[k] > kTurnShare * rs[k])
+                t[k] = refineNode(k == 0 ? node.first : node.right, Vec3(lane0or1(u.x, k), lane0or1(u.y, k), lane0or1(u.z, k)), ms[k], t[k]);
+            }
+          }
+          t_left = t[0];
+          t_right = t[1];
         }
-        t_left = t[0];
-        t_right = t[1];
+  #else
+        // The lanes' arithmetic, one child at a time.
+        auto nodeTime = [&](int index) {
+          Along a;
+          double t = boxTime(bvh.nodes_[static_cast<size_t>(index)].box, best, &a);
+          if (a.valid && t < best && a.turn > kTurnShare * a.rate) t = refineNode(index, a.u, a.margin, t);
+          return t;
+        };
+        const double t_left = nodeTime(node.first);
+        const double t_right = nodeTime(node.right);
+  #endif
+        const bool left_first = t_left <= t_right;
+        const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
+        const double far_t = left_first ? t_right : t_left, near_t = left_first ? t_left : t_right;
+        if (far_t < best) { stack[sp] = far_node; stack_t[sp++] = far_t; } else keep(far_node, far_t);
+        if (near_t < best) { stack[sp] = near_node; stack_t[sp++] = near_t; } else keep(near_node, near_t);
       }
-#else
-      // The lanes' arithmetic, one child at a time.
-      auto nodeTime = [&](int index) {
-        Along a;
-        double t = boxTime(bvh.nodes_[static_cast<size_t>(index)].box, best, &a);
-        if (a.valid && t < best && a.turn > kTurnShare * a.rate) t = refineNode(index, a.u, a.margin, t);
-        return t;
-      };
-      const double t_left = nodeTime(node.first);
-      const double t_right = nodeTime(node.right);
-#endif
-      const bool left_first = t_left <= t_right;
-      const int far_node = left_first ? node.right : node.first, near_node = left_first ? node.first : node.right;
-      const double far_t = left_first ? t_right : t_left, near_t = left_first ? t_left : t_right;
-      if (far_t < best) { stack[sp] = far_node; stack_t[sp++] = far_t; }
-      if (near_t < best) { stack[sp] = near_node; stack_t[sp++] = near_t; }
+    };
+    if (front && front->valid) {
+      // Only what the last step could not certify for the rest of the motion (the front):
+      // every other triangle's bound reached that step's horizon.
+      front->current.swap(front->next);
+      front->next.clear();
+      if (hint_at >= 0) keep(-(hint_at + 1), hint_t);
+      for (int item : front->current) {
+        if (item < 0) {
+          const int i = -item - 1;
+          if (i != hint_at) keep(item, leafTriangle(i));
+          continue;
+        }
+        stack[0] = item;
+        stack_t[0] = -1.0;  // expanded: its children's bounds are taken now
+        sp = 1;
+        run();
+      }
+    } else {
+      if (next) next->clear();
+      if (hint_at >= 0) keep(-(hint_at + 1), hint_t);
+      stack[sp] = 0;
+      stack_t[sp++] = boxTime(bvh.nodes_[0].box, best);
+      run();
     }
+    if (front) front->valid = true;
     if (best_index >= 0) {  // its position in bvh.order_
       limiting->triangle = bvh.order_[static_cast<size_t>(best_index)];
       limiting->closest = detail::finishClosestPoints(shape, X_MB, core.R_MB, best_d, best_core_B, best_tri_B,
@@ -1055,14 +1103,14 @@ bool MeshBvh::closestAmong(const std::vector<NearTriangle>& near_answer, const S
 }
 
 double MeshBvh::advancementStep(const Shape& shape, const Pose& X_MB, const Vec3& dp_M, const Vec3& theta_M,
-                                double eta, double horizon, NearTriangle* limiting, int hint) const {
+                                double eta, double horizon, NearTriangle* limiting, int hint, AdvanceFront* front) const {
   switch (shape.type) {
     case ShapeType::Sphere:
-      return Impl::advancementStep<ShapeType::Sphere>(*this, shape, X_MB, dp_M, theta_M, eta, horizon, limiting, hint);
+      return Impl::advancementStep<ShapeType::Sphere>(*this, shape, X_MB, dp_M, theta_M, eta, horizon, limiting, hint, front);
     case ShapeType::Capsule:
-      return Impl::advancementStep<ShapeType::Capsule>(*this, shape, X_MB, dp_M, theta_M, eta, horizon, limiting, hint);
+      return Impl::advancementStep<ShapeType::Capsule>(*this, shape, X_MB, dp_M, theta_M, eta, horizon, limiting, hint, front);
     case ShapeType::Box:
-      return Impl::advancementStep<ShapeType::Box>(*this, shape, X_MB, dp_M, theta_M, eta, horizon, limiting, hint);
+      return Impl::advancementStep<ShapeType::Box>(*this, shape, X_MB, dp_M, theta_M, eta, horizon, limiting, hint, front);
   }
   limiting->triangle = -1;
   return std::max(0.0, horizon);

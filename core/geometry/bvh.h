@@ -23,6 +23,14 @@
 
 namespace godhand::geo {
 
+/// The nodes and triangles (positions in the leaf order, as −(i + 1)) one advancement step could
+/// not certify for the rest of its motion: the next step of the same sweep starts from them
+/// instead of the root (MeshBvh::advancementStep).
+struct AdvanceFront {
+  std::vector<int> current, next;
+  bool valid = false;
+};
+
 struct NearTriangle {
   int triangle = -1;
   ClosestPoints closest;
@@ -75,9 +83,13 @@ class MeshBvh {
   /// the best is pruned. Measured on the bunny (capsules, spheres and boxes resting 0.1 mm off it
   /// and moving, 3,000 poses, three hints each): of 9,000 calls the time differed in 10, the
   /// limiting triangle in 1,061. Every Δ returned is a lower bound of the contact time either
-  /// way. Never throws, allocates nothing.
+  /// way. `front` (optional, one per sweep, valid = false before its first step): each step
+  /// leaves in it the nodes and triangles whose bound fell short of the horizon, and the next
+  /// step (the same motion, from later on) looks at those only: everything else was shown not
+  /// to come within η before the motion's end. Never throws; allocates nothing once the front's
+  /// vectors have grown.
   double advancementStep(const Shape& shape, const Pose& X_MB, const Vec3& dp_M, const Vec3& theta_M, double eta,
-                         double horizon, NearTriangle* limiting, int hint = -1) const;
+                         double horizon, NearTriangle* limiting, int hint = -1, AdvanceFront* front = nullptr) const;
 
   /// Generalized winding number at p_M (see above).
   double windingNumber(const Vec3& p_M) const;

@@ -37,6 +37,10 @@ SweepResult directionalSweep(const Shape& shape, const Motion& motion, double mu
   double d_limit = d0;  // distance of the triangle that limited the last step
   NearTriangle limiting;
   limiting.triangle = nearest;
+  // What each step could not certify for the rest of the motion, for the next step (bvh.h); the
+  // thread's own scratch, grown once.
+  thread_local AdvanceFront front;
+  front.valid = false;
   for (;;) {
     if (result.iterations >= params.max_iterations) {
       result.hit = true;
@@ -48,7 +52,7 @@ SweepResult directionalSweep(const Shape& shape, const Motion& motion, double mu
     ++result.iterations;
     const double horizon = 1.0 - t;
     const double dt =
-        bvh.advancementStep(shape, motion.at(t), motion.dp, motion.theta, eta, horizon, &limiting, limiting.triangle);
+        bvh.advancementStep(shape, motion.at(t), motion.dp, motion.theta, eta, horizon, &limiting, limiting.triangle, &front);
     if (limiting.triangle >= 0) {
       d_limit = limiting.closest.distance;
       if (d_limit <= eta + params.tolerance) {
