@@ -471,13 +471,18 @@ def case_drills(recording):
 
 
 def case_restart_recovers(recording):
-    """A solver killed at full speed with 2.3 s of the replay left and restarted 0.3 s later: its
+    """A solver killed with 4.6 s of the replay left (half speed) and restarted 0.3 s later: its
     hand is fresh again before the replay ends, in each of two runs. With Fast DDS's default
     participant announcements (every 3 s) the restarted solver's endpoints were often matched
     only after the replay had ended (8 of 10 runs; in 5 it received no HandTarget at all), which
-    the report showed as one "resumed" time of the first restart and nothing else."""
+    the report showed as one "resumed" time of the first restart and nothing else. At full speed
+    (2.3 s left) the test failed once in CI (2026-12-07, run serially, on a shared machine): the
+    restarted solver received no HandTarget before the replay ended. Reproduced with the
+    distributed tests running beside it on 2 cores: the restarted solver's own start-up (loading
+    the scene, building its BVH) took 0.6-2.4 s to its first heartbeat (14 runs; 0.4-0.7 s on a
+    quiet machine) and in 3 of 14 it came after the replay's end, while the hand was fresh again 0.00-0.51 s after that heartbeat in every run."""
     for attempt in (1, 2):
-        r, j = launch(["--recording", recording, "--kill", "solver/left@f60", "--restart-delay", "0.3"])
+        r, j = launch(["--recording", recording, "--speed", "0.5", "--kill", "solver/left@f60", "--restart-delay", "0.3"])
         check(r.returncode == 0, f"run {attempt}: godhand-launch with the fault drill exited 0 ({r.returncode})")
         rs = [x for x in j.get("restarts", []) if x.get("service") == "solver/left"]
         check(len(rs) == 1, f"run {attempt}: one restart of solver/left reported ({j.get('restarts')})")
