@@ -480,7 +480,8 @@ def case_restart_recovers(recording):
     restarted solver received no HandTarget before the replay ended. Reproduced with the
     distributed tests running beside it on 2 cores: the restarted solver's own start-up (loading
     the scene, building its BVH) took 0.6-2.4 s to its first heartbeat (14 runs; 0.4-0.7 s on a
-    quiet machine) and in 3 of 14 it came after the replay's end, while the hand was fresh again 0.00-0.51 s after that heartbeat in every run."""
+    quiet machine) and in 3 of 14 it came after the replay's end, while the hand was fresh again
+    0.00-0.51 s after that heartbeat in every run."""
     for attempt in (1, 2):
         r, j = launch(["--recording", recording, "--speed", "0.5", "--kill", "solver/left@f60", "--restart-delay", "0.3"])
         check(r.returncode == 0, f"run {attempt}: godhand-launch with the fault drill exited 0 ({r.returncode})")
