@@ -81,6 +81,8 @@ Server::Server(const ServerOptions& o) : impl_(std::make_unique<Impl>()), inbox_
   ws.set_max_message_size(o.limits.max_client_message);
   ws.set_max_http_body_size(o.limits.max_client_message);
   ws.set_listen_backlog(64);
+  if (o.handshake_timeout_ms < 1) throw ServerError("handshake timeout must be at least 1 ms");
+  ws.set_open_handshake_timeout(o.handshake_timeout_ms);
 
   impl_->overflow_bytes = 2 * o.limits.max_queued_bytes;
   impl_->pong_below_bytes = o.limits.send_below_bytes;

@@ -32,6 +32,10 @@ struct ServerOptions {
   std::string web_root;          ///< folder with index.html and viewer.js (the built page)
   HubLimits limits;
   std::size_t inbox_capacity = 4096;  ///< messages waiting for the server thread
+  /// How long a connection may take from its accept to its handshake's or HTTP response's last
+  /// byte sent (websocketpp's open-handshake timeout, its default 5 s): a client that never
+  /// reads a response is dropped then, and its HTTP slot (kMaxHttpInFlight) freed.
+  long handshake_timeout_ms = 5000;
 };
 
 class Server {
