@@ -48,6 +48,8 @@ Pipeline::Pipeline(const Scene& scene, std::vector<const HandModel*> hands, Pipe
   report_.hands.resize(models_.size());
   workers_ = std::make_unique<Workers>(std::max(1, threads));
   hand_us_.assign(models_.size(), 0.0);
+  hand_weight_.assign(models_.size(), 0.0);
+  hand_order_.assign(models_.size(), 0);
   solve_hand_ = [this](int h) {
     const size_t i = static_cast<size_t>(h);
     const Clock::time_point t0 = Clock::now();
@@ -65,7 +67,8 @@ Pipeline::Pipeline(const Scene& scene, std::vector<const HandModel*> hands, Pipe
     solve_hands_shared_ = [this](int, int thread) {
       const int n = static_cast<int>(solvers_.size());
       std::exception_ptr error;
-      for (int h = next_hand_.fetch_add(1); h < n; h = next_hand_.fetch_add(1)) {
+      for (int next = next_hand_.fetch_add(1); next < n; next = next_hand_.fetch_add(1)) {
+        const int h = hand_order_[static_cast<size_t>(next)];
         try {
           solvers_[static_cast<size_t>(h)]->setShareThread(thread);
           solve_hand_(h);
@@ -108,8 +111,18 @@ const FrameReport& Pipeline::step(const std::vector<HandInput>& inputs) {
   if (share_) {
     // The hand that took longest last frame, less the time its thread spent on another hand's
     // jobs, has its bodies' jobs taken first (JobShare::setWeight).
-    for (size_t h = 0; h < solvers_.size(); ++h)
-      share_->setWeight(static_cast<int>(h), hand_us_[h] - share_->takeLent(static_cast<int>(h)));
+    // The hands are taken heaviest first: the calling thread takes the first at once, a pool
+    // thread the next once it has woken, so the heavy hand's start does not wait for that
+    // wake-up (measured on confidence2 over the bunny, medians: the heavy hand started 50 µs into
+    // the frame, now 22; the pool thread sleeps between frames, 1.2-1.7 ms apart in the bench).
+    // (Insertion sort: stable, ties in hand order, and no allocation.)
+    for (size_t h = 0; h < solvers_.size(); ++h) {
+      hand_weight_[h] = hand_us_[h] - share_->takeLent(static_cast<int>(h));
+      share_->setWeight(static_cast<int>(h), hand_weight_[h]);
+      size_t j = h;
+      for (; j > 0 && hand_weight_[static_cast<size_t>(hand_order_[j - 1])] < hand_weight_[h]; --j) hand_order_[j] = hand_order_[j - 1];
+      hand_order_[j] = static_cast<int>(h);
+    }
     next_hand_.store(0);
     hands_done_.store(0);
     workers_->runSlots(share_->threads(), solve_hands_shared_);

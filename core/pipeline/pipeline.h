@@ -135,6 +135,8 @@ class Pipeline {
   std::unique_ptr<JobShare> share_;
   std::function<void(int, int)> solve_hands_shared_;
   std::atomic<int> next_hand_{0}, hands_done_{0};
+  std::vector<double> hand_weight_;  // per hand: its JobShare weight this frame
+  std::vector<int> hand_order_;      // the hands by weight, heaviest first (taken in this order)
   std::vector<const HandProposal*> proposals_;
   std::vector<double> hand_us_;  // per hand: its solver's time in the last frame (JobShare weights)
   FrameReport report_;
