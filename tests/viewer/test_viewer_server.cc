@@ -83,41 +83,62 @@ bool requestsTaken(const Server& server, std::uint64_t n) {
   return true;
 }
 
-// A client that never reads its response is dropped once the handshake timeout has passed: its
-// HTTP slot is free again while its socket is still open on the client's side.
-TEST(ViewerServer, AClientThatNeverReadsIsDroppedAfterTheHandshakeTimeout) {
-  const std::string root = ::testing::TempDir() + "/viewer_root_timeout";
-  ASSERT_EQ(std::system(("mkdir -p " + root).c_str()), 0);
+// The page's two files in a folder of their own under the test's temporary folder, and server
+// options serving them.
+ServerOptions pageOptions(const std::string& name) {
+  const std::string root = ::testing::TempDir() + "/" + name;
+  EXPECT_EQ(std::system(("mkdir -p " + root).c_str()), 0);
   std::ofstream(root + "/index.html") << "<html></html>\n";
   std::ofstream(root + "/viewer.js") << "// page\n";
   ServerOptions o;
   o.web_root = root;
+  return o;
+}
+
+// `n` clients from address `from` that ask for /big and never read it.
+void openHogs(const char* from, int port, int n, std::vector<int>* fds) {
+  for (int i = 0; i < n; ++i) {
+    const int fd = connectFrom(from, port);
+    ASSERT_GE(fd, 0);
+    ASSERT_TRUE(request(fd, "/big"));
+    fds->push_back(fd);
+  }
+}
+
+// The status of /index.html from 127.0.0.1 once it is 200, polled for at most 30 s (the last
+// status then).
+std::string statusOnceServed(int port) {
+  std::string status;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (status != "200" && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    status = statusFrom("127.0.0.1", port, "/index.html");
+  }
+  return status;
+}
+
+// 32 MB: more than any socket buffers between the server and a client that does not read.
+std::shared_ptr<const std::string> bigBody() { return std::make_shared<const std::string>(std::string(32u << 20, 'x')); }
+
+// A client that never reads its response is dropped once the handshake timeout has passed: its
+// HTTP slot is free again while its socket is still open on the client's side.
+TEST(ViewerServer, AClientThatNeverReadsIsDroppedAfterTheHandshakeTimeout) {
+  ServerOptions o = pageOptions("viewer_root_timeout");
   o.handshake_timeout_ms = 1000;
   Server server(o);
-  server.setRoute("/big", "application/octet-stream", std::make_shared<const std::string>(std::string(32u << 20, 'x')));
+  server.setRoute("/big", "application/octet-stream", bigBody());
   server.start();
   const int port = server.port();
   std::vector<int> hogs;
   const auto first = std::chrono::steady_clock::now();  // (the timeout runs from each accept)
-  for (int i = 0; i < Server::kMaxHttpPerAddress; ++i) {
-    const int fd = connectFrom("127.0.0.1", port);
-    ASSERT_GE(fd, 0);
-    ASSERT_TRUE(request(fd, "/big"));
-    hogs.push_back(fd);
-  }
+  openHogs("127.0.0.1", port, Server::kMaxHttpPerAddress, &hogs);
   ASSERT_TRUE(requestsTaken(server, static_cast<std::uint64_t>(Server::kMaxHttpPerAddress)));
   // Refused while the hogs hold the address's share (checked where the timeout cannot have passed).
   const std::string during = statusFrom("127.0.0.1", port, "/index.html");
   if (std::chrono::steady_clock::now() - first < std::chrono::milliseconds(800)) {
     EXPECT_EQ(during, "503");
   }
-  std::string after;
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (after != "200" && std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    after = statusFrom("127.0.0.1", port, "/index.html");
-  }
-  EXPECT_EQ(after, "200") << "the hogs' slots freed by the server (their sockets still open here)";
+  EXPECT_EQ(statusOnceServed(port), "200") << "the hogs' slots freed by the server (their sockets still open here)";
   for (int fd : hogs) ::close(fd);
   server.stop();
   ServerOptions bad = o;
@@ -126,56 +147,33 @@ TEST(ViewerServer, AClientThatNeverReadsIsDroppedAfterTheHandshakeTimeout) {
 }
 
 TEST(ViewerServer, ClientsThatNeverReadHoldOnlyTheirAddresssShareOfTheHttpSlots) {
-  const std::string root = ::testing::TempDir() + "/viewer_root";
-  ASSERT_EQ(std::system(("mkdir -p " + root).c_str()), 0);
-  std::ofstream(root + "/index.html") << "<html></html>\n";
-  std::ofstream(root + "/viewer.js") << "// page\n";
-  ServerOptions o;
-  o.web_root = root;
+  ServerOptions o = pageOptions("viewer_root");
   // The hogs hold their slots for the whole test: with the default 5 s the server dropped the
   // first ones before the last check on a loaded machine (CI, 2026-12-07: 11.5 s for the test,
-  // "200" where "503" was due). The drop itself: the test below.
+  // "200" where "503" was due). The drop itself: AClientThatNeverReadsIsDroppedAfterTheHandshakeTimeout.
   o.handshake_timeout_ms = 300000;
   Server server(o);
-  // 32 MB: more than any socket buffers between the server and a client that does not read.
-  server.setRoute("/big", "application/octet-stream", std::make_shared<const std::string>(std::string(32u << 20, 'x')));
+  server.setRoute("/big", "application/octet-stream", bigBody());
   server.start();
   const int port = server.port();
   ASSERT_EQ(statusFrom("127.0.0.1", port, "/index.html"), "200");
 
   std::vector<int> hogs;
-  for (int i = 0; i < Server::kMaxHttpPerAddress; ++i) {
-    const int fd = connectFrom("127.0.0.1", port);
-    ASSERT_GE(fd, 0);
-    ASSERT_TRUE(request(fd, "/big"));
-    hogs.push_back(fd);
-  }
+  openHogs("127.0.0.1", port, Server::kMaxHttpPerAddress, &hogs);
   // The server has taken every hog's request (each then holds its slot until its client reads).
   ASSERT_TRUE(requestsTaken(server, 1 + static_cast<std::uint64_t>(Server::kMaxHttpPerAddress)));
   EXPECT_EQ(statusFrom("127.0.0.1", port, "/index.html"), "503") << "one address holds at most its share";
   EXPECT_EQ(statusFrom("127.0.0.2", port, "/index.html"), "200") << "another address is served meanwhile";
   // Two more addresses of hogs fill the server's 16 slots: then everyone waits.
   std::vector<int> more;
-  for (const char* from : {"127.0.0.3", "127.0.0.4"})
-    for (int i = 0; i < Server::kMaxHttpPerAddress; ++i) {
-      const int fd = connectFrom(from, port);
-      ASSERT_GE(fd, 0);
-      ASSERT_TRUE(request(fd, "/big"));
-      more.push_back(fd);
-    }
+  for (const char* from : {"127.0.0.3", "127.0.0.4"}) openHogs(from, port, Server::kMaxHttpPerAddress, &more);
   ASSERT_TRUE(requestsTaken(server, 3 + 3 * static_cast<std::uint64_t>(Server::kMaxHttpPerAddress)));
   EXPECT_EQ(statusFrom("127.0.0.5", port, "/index.html"), "503") << Server::kMaxHttpInFlight << " slots in all";
   EXPECT_GE(server.httpRefused(), 3u);
   for (int fd : hogs) ::close(fd);
   for (int fd : more) ::close(fd);
   // Gone clients free their slots.
-  std::string after;
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (after != "200" && std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    after = statusFrom("127.0.0.1", port, "/index.html");
-  }
-  EXPECT_EQ(after, "200");
+  EXPECT_EQ(statusOnceServed(port), "200");
   server.stop();
 }
 
